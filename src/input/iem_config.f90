@@ -1,0 +1,97 @@
+!> Validated run configuration: what the namelist says, in types that travel together.
+module iem_config
+  use iem_kinds, only: wp
+  implicit none
+  private
+  public :: config_t, run_config_t, geometry_config_t, material_config_t
+  public :: node_set_spec_t, time_function_spec_t, bc_config_t, load_config_t
+  public :: damping_config_t, probe_config_t
+  public :: name_len, path_len
+
+  integer, parameter :: name_len = 64, path_len = 1024
+
+  !> Run control (&run).
+  type :: run_config_t
+    character(len=16) :: analysis = 'dynamic'
+    real(wp) :: t_end = 0.0_wp
+    real(wp) :: dt = 0.0_wp
+    real(wp) :: dt_safety = 0.9_wp
+    real(wp) :: output_interval = 0.0_wp
+    real(wp) :: history_interval = 0.0_wp
+    real(wp) :: progress_interval = 10.0_wp
+    character(len=path_len) :: output_file = 'iem_out.h5'
+    logical :: overwrite = .false.
+  end type run_config_t
+
+  !> Rectangle and its grid (&geometry).
+  type :: geometry_config_t
+    real(wp) :: length = 0.0_wp, height = 0.0_wp, thickness = 1.0_wp
+    integer :: nx = 0, ny = 0
+    real(wp) :: cell_size = 0.0_wp
+    character(len=8) :: plane = 'stress'
+  end type geometry_config_t
+
+  !> Linear elastic material (&material).
+  type :: material_config_t
+    real(wp) :: young = 0.0_wp, poisson = 0.0_wp, density = 0.0_wp
+  end type material_config_t
+
+  !> A set of nodes: a named edge, a box, a point (nearest node) or all nodes.
+  type :: node_set_spec_t
+    character(len=8) :: where = ''
+    real(wp) :: box(4) = 0.0_wp
+    real(wp) :: point(2) = 0.0_wp
+  end type node_set_spec_t
+
+  !> Time function of a load or prescribed velocity: constant, step or linear ramp.
+  type :: time_function_spec_t
+    character(len=8) :: kind = 'constant'
+    real(wp) :: t_start = 0.0_wp
+    real(wp) :: t_ramp = 0.0_wp
+  end type time_function_spec_t
+
+  !> One boundary condition (&bc).
+  type :: bc_config_t
+    character(len=name_len) :: name = ''
+    type(node_set_spec_t) :: set
+    character(len=8) :: kind = 'fix'
+    logical :: dof(2) = .false.
+    real(wp) :: velocity(2) = 0.0_wp
+    type(time_function_spec_t) :: tf
+  end type bc_config_t
+
+  !> One load (&load).
+  type :: load_config_t
+    character(len=name_len) :: name = ''
+    character(len=8) :: kind = 'nodal'
+    type(node_set_spec_t) :: set
+    real(wp) :: value(2) = 0.0_wp
+    type(time_function_spec_t) :: tf
+  end type load_config_t
+
+  !> Rayleigh damping, resolved to alpha (mass) and beta (stiffness) coefficients.
+  type :: damping_config_t
+    character(len=12) :: kind = 'none'
+    real(wp) :: alpha = 0.0_wp, beta = 0.0_wp
+    real(wp) :: ratio = 0.0_wp, frequency = 0.0_wp
+  end type damping_config_t
+
+  !> A named point whose nearest node is recorded in the history.
+  type :: probe_config_t
+    character(len=name_len) :: name = ''
+    real(wp) :: x = 0.0_wp, y = 0.0_wp
+  end type probe_config_t
+
+  !> The whole validated configuration of a run.
+  type :: config_t
+    character(len=path_len) :: input_file = ''
+    character(len=:), allocatable :: input_text
+    type(run_config_t) :: run
+    type(geometry_config_t) :: geometry
+    type(material_config_t) :: material
+    type(damping_config_t) :: damping
+    type(bc_config_t), allocatable :: bcs(:)
+    type(load_config_t), allocatable :: loads(:)
+    type(probe_config_t), allocatable :: probes(:)
+  end type config_t
+end module iem_config

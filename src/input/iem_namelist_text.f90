@@ -1,0 +1,299 @@
+!> The input file as text: read on rank 0, broadcast, split into namelist groups with the
+!> variables each group assigns, so that errors can name the group, variable and line.
+module iem_namelist_text
+  use mpi_f08, only: MPI_Comm, MPI_Bcast, MPI_INTEGER, MPI_CHARACTER, MPI_Comm_rank
+  use iem_strings, only: itoa
+  implicit none
+  private
+  public :: nml_text_t, nml_group_t, line_len, key_len
+
+  integer, parameter :: line_len = 512, key_len = 32
+
+  !> One namelist group as it stands in the file.
+  type :: nml_group_t
+    character(len=key_len) :: name = ''
+    integer :: first_line = 0, first_col = 0, last_line = 0, last_col = 0
+    integer :: n_keys = 0
+    character(len=key_len), allocatable :: keys(:)
+    integer, allocatable :: key_lines(:)
+  end type nml_group_t
+
+  !> The whole input file and its groups.
+  type :: nml_text_t
+    character(len=:), allocatable :: path
+    integer :: n_lines = 0
+    character(len=line_len), allocatable :: lines(:)
+    integer :: n_groups = 0
+    type(nml_group_t), allocatable :: groups(:)
+  contains
+    procedure :: load => nml_text_load
+    procedure :: scan => nml_text_scan
+    procedure :: chunk => nml_text_chunk
+    procedure :: joined => nml_text_joined
+  end type nml_text_t
+
+contains
+
+  !> Read the file on rank 0 and broadcast its lines; stat /= 0 on every rank if it fails.
+  subroutine nml_text_load(this, path, comm, stat, msg)
+    class(nml_text_t), intent(inout) :: this
+    character(len=*), intent(in) :: path
+    type(MPI_Comm), intent(in) :: comm
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: rank, unit, ios, info(2), n
+    character(len=line_len + 1) :: buf
+    character(len=256) :: iom
+
+    call MPI_Comm_rank(comm, rank)
+    this%path = path
+    info = 0
+    msg = ''
+    if (rank == 0) then
+      open(newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=iom)
+      if (ios /= 0) then
+        info(1) = 1
+      else
+        n = 0
+        do
+          read(unit, '(a)', iostat=ios) buf
+          if (ios /= 0) exit
+          n = n + 1
+          if (len_trim(buf) > line_len) info(1) = 2
+        end do
+        info(2) = n
+        if (info(1) == 0) then
+          allocate(this%lines(n))
+          rewind(unit)
+          do n = 1, info(2)
+            read(unit, '(a)') this%lines(n)
+          end do
+        end if
+        close(unit)
+      end if
+    end if
+    call MPI_Bcast(info, 2, MPI_INTEGER, 0, comm)
+    stat = info(1)
+    if (stat == 1) then
+      msg = "cannot open the input file '"//trim(path)//"'"
+      return
+    else if (stat == 2) then
+      msg = "input file '"//trim(path)//"' has a line longer than 512 characters"
+      return
+    end if
+    this%n_lines = info(2)
+    if (rank /= 0) allocate(this%lines(this%n_lines))
+    if (this%n_lines > 0) call MPI_Bcast(this%lines, line_len*this%n_lines, MPI_CHARACTER, 0, comm)
+  end subroutine nml_text_load
+
+  !> Split the text into groups and record each assigned variable; stat /= 0 on a syntax error.
+  subroutine nml_text_scan(this, stat, msg)
+    class(nml_text_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: l, i, n, j, k
+    logical :: in_group, in_quote
+    character :: q, c
+    character(len=key_len) :: ident
+    type(nml_group_t), allocatable :: tmp(:)
+
+    stat = 0
+    msg = ''
+    allocate(this%groups(8))
+    this%n_groups = 0
+    in_group = .false.
+    in_quote = .false.
+    q = ' '
+    do l = 1, this%n_lines
+      n = len_trim(this%lines(l))
+      i = 1
+      do while (i <= n)
+        c = this%lines(l)(i:i)
+        if (in_quote) then
+          if (c == q) then
+            if (i < n .and. this%lines(l)(i+1:i+1) == q) then
+              i = i + 1
+            else
+              in_quote = .false.
+            end if
+          end if
+          i = i + 1
+          cycle
+        end if
+        if (c == '!') exit
+        if (.not. in_group) then
+          if (c == '&' .or. c == '$') then
+            j = i + 1
+            call read_ident(this%lines(l), j, ident)
+            if (len_trim(ident) == 0) then
+              stat = 1
+              msg = 'line '//itoa(l)//": '&' without a group name"
+              return
+            end if
+            if (this%n_groups == size(this%groups)) then
+              allocate(tmp(2*size(this%groups)))
+              tmp(1:this%n_groups) = this%groups(1:this%n_groups)
+              call move_alloc(tmp, this%groups)
+            end if
+            this%n_groups = this%n_groups + 1
+            associate(g => this%groups(this%n_groups))
+              g%name = ident
+              g%first_line = l
+              g%first_col = i
+              allocate(g%keys(16), g%key_lines(16))
+              g%n_keys = 0
+            end associate
+            in_group = .true.
+            i = j
+            cycle
+          else if (c /= ' ' .and. c /= achar(9)) then
+            stat = 1
+            msg = 'line '//itoa(l)//': text outside any namelist group: "'// &
+                  trim(adjustl(this%lines(l)))//'"'
+            return
+          end if
+          i = i + 1
+          cycle
+        end if
+        ! inside a group
+        if (c == "'" .or. c == '"') then
+          in_quote = .true.
+          q = c
+        else if (c == '/' .or. c == '&' .or. c == '$') then
+          if (c /= '/') then
+            j = i + 1
+            call read_ident(this%lines(l), j, ident)
+            if (ident /= 'end') then
+              stat = 1
+              msg = 'line '//itoa(l)//': &'//trim(this%groups(this%n_groups)%name)// &
+                    " is not closed with '/' before a new group starts"
+              return
+            end if
+            i = j - 1
+          end if
+          this%groups(this%n_groups)%last_line = l
+          this%groups(this%n_groups)%last_col = i
+          in_group = .false.
+        else if (is_ident_start(c) .and. .not. after_ident_char(this%lines(l), i)) then
+          j = i
+          call read_ident(this%lines(l), j, ident)
+          k = j
+          ! skip an array index such as box(1) and blanks
+          if (k <= n) then
+            if (this%lines(l)(k:k) == '(') then
+              do while (k <= n)
+                if (this%lines(l)(k:k) == ')') exit
+                k = k + 1
+              end do
+              k = k + 1
+            end if
+          end if
+          do while (k <= n)
+            if (this%lines(l)(k:k) /= ' ') exit
+            k = k + 1
+          end do
+          if (k <= n) then
+            if (this%lines(l)(k:k) == '=') call add_key(this%groups(this%n_groups), ident, l)
+          end if
+          i = j
+          cycle
+        end if
+        i = i + 1
+      end do
+      if (in_quote) then
+        stat = 1
+        msg = 'line '//itoa(l)//': a quoted string is not closed on its line'
+        return
+      end if
+    end do
+    if (in_group) then
+      stat = 1
+      msg = '&'//trim(this%groups(this%n_groups)%name)//' (opened on line '// &
+            itoa(this%groups(this%n_groups)%first_line)//") is never closed with '/'"
+    end if
+  end subroutine nml_text_scan
+
+  !> The lines of group g, with anything outside the group blanked, for an internal read.
+  subroutine nml_text_chunk(this, g, chunk)
+    class(nml_text_t), intent(in) :: this
+    integer, intent(in) :: g
+    character(len=line_len), allocatable, intent(out) :: chunk(:)
+    integer :: n
+    associate(grp => this%groups(g))
+      n = grp%last_line - grp%first_line + 1
+      allocate(chunk(n))
+      chunk(:) = this%lines(grp%first_line:grp%last_line)
+      chunk(n)(grp%last_col + 1:) = ''
+      if (grp%first_col > 1) chunk(1)(1:grp%first_col - 1) = ''
+    end associate
+  end subroutine nml_text_chunk
+
+  !> The whole file as one string with newlines, as stored in the output file.
+  function nml_text_joined(this) result(text)
+    class(nml_text_t), intent(in) :: this
+    character(len=:), allocatable :: text
+    integer :: l
+    text = ''
+    do l = 1, this%n_lines
+      text = text//trim(this%lines(l))//new_line('a')
+    end do
+  end function nml_text_joined
+
+  subroutine add_key(g, key, line)
+    type(nml_group_t), intent(inout) :: g
+    character(len=*), intent(in) :: key
+    integer, intent(in) :: line
+    character(len=key_len), allocatable :: k2(:)
+    integer, allocatable :: l2(:)
+    if (g%n_keys == size(g%keys)) then
+      allocate(k2(2*g%n_keys), l2(2*g%n_keys))
+      k2(1:g%n_keys) = g%keys
+      l2(1:g%n_keys) = g%key_lines
+      call move_alloc(k2, g%keys)
+      call move_alloc(l2, g%key_lines)
+    end if
+    g%n_keys = g%n_keys + 1
+    g%keys(g%n_keys) = key
+    g%key_lines(g%n_keys) = line
+  end subroutine add_key
+
+  !> Read a lower-cased identifier starting at position j; j ends just past it.
+  subroutine read_ident(line, j, ident)
+    character(len=*), intent(in) :: line
+    integer, intent(inout) :: j
+    character(len=*), intent(out) :: ident
+    integer :: j0, k, c
+    j0 = j
+    do while (j <= len_trim(line))
+      if (.not. is_ident_char(line(j:j))) exit
+      j = j + 1
+    end do
+    ident = line(j0:j - 1)
+    do k = 1, len_trim(ident)
+      c = iachar(ident(k:k))
+      if (c >= iachar('A') .and. c <= iachar('Z')) ident(k:k) = achar(c + 32)
+    end do
+  end subroutine read_ident
+
+  pure logical function is_ident_start(c)
+    character, intent(in) :: c
+    is_ident_start = (c >= 'a' .and. c <= 'z') .or. (c >= 'A' .and. c <= 'Z')
+  end function is_ident_start
+
+  pure logical function is_ident_char(c)
+    character, intent(in) :: c
+    is_ident_char = is_ident_start(c) .or. (c >= '0' .and. c <= '9') .or. c == '_' .or. c == '%'
+  end function is_ident_char
+
+  !> True when position i continues a token (so it cannot start a variable name).
+  pure logical function after_ident_char(line, i)
+    character(len=*), intent(in) :: line
+    integer, intent(in) :: i
+    character :: p
+    after_ident_char = .false.
+    if (i == 1) return
+    p = line(i-1:i-1)
+    after_ident_char = is_ident_char(p) .or. p == '.' .or. p == '+' .or. p == '-'
+  end function after_ident_char
+
+end module iem_namelist_text

@@ -1,0 +1,256 @@
+!> The elastic lattice model on one rank: spring constants, masses, loads, boundary
+!> conditions, damping, and the rate (accelerations) of the first-order system (u, v).
+module iem_model
+  use iem_kinds, only: wp, ip, i8
+  use iem_config, only: config_t, time_function_spec_t
+  use iem_grid, only: grid_t
+  use iem_local_lattice, only: local_lattice_t
+  use iem_node_sets, only: in_node_set, edge_weight
+  use iem_spring_constants, only: cell_constants_t, cell_constants
+  use iem_cell_kernel, only: cell_force
+  use iem_time_function, only: tf_value, tf_rate
+  use iem_strings, only: itoa
+  implicit none
+  private
+  public :: model_t
+
+  !> Everything the force evaluation of one rank needs, with preallocated work arrays.
+  type :: model_t
+    type(grid_t) :: grid
+    type(cell_constants_t) :: k
+    real(wp) :: density = 0.0_wp, alpha = 0.0_wp, beta = 0.0_wp
+    !> Lumped mass of owned nodes.
+    real(wp), allocatable :: mass(:)
+    !> Prescribed degrees of freedom: owned node, component, bc index.
+    integer, allocatable :: bc_node(:), bc_comp(:), bc_id(:)
+    real(wp), allocatable :: bc_velocity(:, :)
+    type(time_function_spec_t), allocatable :: bc_tf(:)
+    !> Load entries: owned node, force vector at full load, load index.
+    integer, allocatable :: load_node(:), load_id(:)
+    real(wp), allocatable :: load_force(:, :)
+    type(time_function_spec_t), allocatable :: load_tf(:)
+    real(wp), allocatable :: load_scale(:)
+    !> Work arrays: cell corner forces, cell energies, cell damping power, external force.
+    real(wp), allocatable :: fc(:, :, :), ec(:), pc(:), fext(:, :)
+    !> Free dofs mask (owned nodes): 1 free, 0 prescribed.
+    real(wp), allocatable :: free(:, :)
+  contains
+    procedure :: init => model_init
+    procedure :: rate => model_rate
+    procedure :: prescribe => model_prescribe
+    procedure :: kinetic_energy => model_kinetic_energy
+    procedure :: strain_energy => model_strain_energy
+  end type model_t
+
+contains
+
+  !> Build the model of this rank from the configuration and its local lattice; n_selected
+  !> counts, per &bc then per &load, the owned nodes each selects (the caller sums them).
+  subroutine model_init(this, cfg, grid, lat, n_selected)
+    class(model_t), intent(inout) :: this
+    type(config_t), intent(in) :: cfg
+    type(grid_t), intent(in) :: grid
+    type(local_lattice_t), intent(in) :: lat
+    integer(i8), intent(out) :: n_selected(:)
+    integer :: l, q, b, n, c, ld
+    real(wp) :: mcell, w
+
+    this%grid = grid
+    this%density = cfg%material%density
+    this%k = cell_constants(cfg%material%young, cfg%material%poisson, &
+                            cfg%geometry%plane == 'strain', grid%lx, grid%ly, grid%thickness)
+    this%alpha = cfg%damping%alpha
+    this%beta = cfg%damping%beta
+    mcell = 0.25_wp*this%density*grid%lx*grid%ly*grid%thickness
+    allocate(this%mass(lat%n_owned))
+    do l = 1, lat%n_owned
+      this%mass(l) = mcell*count(lat%node_cells(:, l) > 0)
+    end do
+    allocate(this%fc(2, 4, lat%n_cells), this%ec(lat%n_cells), this%pc(lat%n_cells))
+    allocate(this%fext(2, lat%n_owned), this%free(2, lat%n_owned))
+    this%fc = 0.0_wp
+    this%ec = 0.0_wp
+    this%pc = 0.0_wp
+    this%fext = 0.0_wp
+    n_selected = 0
+
+    ! boundary conditions: a later &bc overrides an earlier one on the same dof
+    n = 0
+    do b = 1, size(cfg%bcs)
+      do l = 1, lat%n_owned
+        if (in_node_set(cfg%bcs(b)%set, grid, lat%ij(1, l), lat%ij(2, l))) then
+          n_selected(b) = n_selected(b) + 1
+          n = n + count(cfg%bcs(b)%dof)
+        end if
+      end do
+    end do
+    allocate(this%bc_node(n), this%bc_comp(n), this%bc_id(n))
+    allocate(this%bc_velocity(2, size(cfg%bcs)), this%bc_tf(size(cfg%bcs)))
+    this%free = 1.0_wp
+    n = 0
+    do b = 1, size(cfg%bcs)
+      this%bc_velocity(:, b) = 0.0_wp
+      if (cfg%bcs(b)%kind == 'velocity') this%bc_velocity(:, b) = cfg%bcs(b)%velocity
+      this%bc_tf(b) = cfg%bcs(b)%tf
+      do l = 1, lat%n_owned
+        if (.not. in_node_set(cfg%bcs(b)%set, grid, lat%ij(1, l), lat%ij(2, l))) cycle
+        do c = 1, 2
+          if (.not. cfg%bcs(b)%dof(c)) cycle
+          if (this%free(c, l) == 0.0_wp) then
+            do q = 1, n
+              if (this%bc_node(q) == l .and. this%bc_comp(q) == c) this%bc_id(q) = b
+            end do
+          else
+            n = n + 1
+            this%bc_node(n) = l
+            this%bc_comp(n) = c
+            this%bc_id(n) = b
+            this%free(c, l) = 0.0_wp
+          end if
+        end do
+      end do
+    end do
+    this%bc_node = this%bc_node(1:n)
+    this%bc_comp = this%bc_comp(1:n)
+    this%bc_id = this%bc_id(1:n)
+
+    ! loads
+    n = 0
+    do ld = 1, size(cfg%loads)
+      do l = 1, lat%n_owned
+        if (in_node_set(cfg%loads(ld)%set, grid, lat%ij(1, l), lat%ij(2, l))) then
+          n_selected(size(cfg%bcs) + ld) = n_selected(size(cfg%bcs) + ld) + 1
+          n = n + 1
+        end if
+      end do
+    end do
+    allocate(this%load_node(n), this%load_id(n), this%load_force(2, n))
+    allocate(this%load_tf(size(cfg%loads)), this%load_scale(size(cfg%loads)))
+    n = 0
+    do ld = 1, size(cfg%loads)
+      this%load_tf(ld) = cfg%loads(ld)%tf
+      do l = 1, lat%n_owned
+        if (.not. in_node_set(cfg%loads(ld)%set, grid, lat%ij(1, l), lat%ij(2, l))) cycle
+        n = n + 1
+        this%load_node(n) = l
+        this%load_id(n) = ld
+        select case (trim(cfg%loads(ld)%kind))
+        case ('nodal')
+          this%load_force(:, n) = cfg%loads(ld)%value
+        case ('edge')
+          w = edge_weight(cfg%loads(ld)%set%where, grid, lat%ij(1, l), lat%ij(2, l))
+          this%load_force(:, n) = cfg%loads(ld)%value*w*grid%thickness
+        case ('gravity')
+          this%load_force(:, n) = cfg%loads(ld)%value*this%mass(l)
+        end select
+      end do
+    end do
+  end subroutine model_init
+
+  !> Overwrite the velocities of prescribed dofs in y(4, :) with their values at time t.
+  subroutine model_prescribe(this, y, t)
+    class(model_t), intent(in) :: this
+    real(wp), intent(inout) :: y(:, :)
+    real(wp), intent(in) :: t
+    integer :: q, b
+    do q = 1, size(this%bc_node)
+      b = this%bc_id(q)
+      y(2 + this%bc_comp(q), this%bc_node(q)) = this%bc_velocity(this%bc_comp(q), b)* &
+                                                tf_value(this%bc_tf(b), t)
+    end do
+  end subroutine model_prescribe
+
+  !> Accelerations acc(2, n_owned) of the owned nodes for the state y(4, n_local) (halo
+  !> columns up to date) at time t; also the local power of external forces (loads and
+  !> support reactions) and of damping, for the energy balance.
+  subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp)
+    class(model_t), intent(inout) :: this
+    type(local_lattice_t), intent(in) :: lat
+    real(wp), intent(in) :: y(:, :)
+    real(wp), intent(in) :: t
+    real(wp), intent(out) :: acc(:, :)
+    real(wp), intent(out) :: p_ext, p_damp
+    real(wp) :: uc(2, 4), vc(2, 4), f(2), r
+    integer :: c, q, l, s, b, ld, comp, n
+
+    ! cell forces (internal + stiffness damping), energies, damping power
+    do c = 1, lat%n_cells
+      do q = 1, 4
+        uc(:, q) = y(1:2, lat%cell_nodes(q, c))
+        vc(:, q) = y(3:4, lat%cell_nodes(q, c))
+      end do
+      call cell_force(this%k, uc, vc, this%beta, this%fc(:, :, c), this%ec(c), this%pc(c))
+    end do
+    ! external loads
+    do ld = 1, size(this%load_tf)
+      this%load_scale(ld) = tf_value(this%load_tf(ld), t)
+    end do
+    this%fext = 0.0_wp
+    do n = 1, size(this%load_node)
+      l = this%load_node(n)
+      this%fext(:, l) = this%fext(:, l) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+    end do
+    ! gather per node in a fixed cell order, then accelerations
+    p_ext = 0.0_wp
+    p_damp = 0.0_wp
+    do l = 1, lat%n_owned
+      f = 0.0_wp
+      do q = 1, 4
+        s = lat%node_cells(q, l)
+        if (s > 0) f = f + this%fc(:, mod(s - 1, 4) + 1, (s - 1)/4 + 1)
+      end do
+      f = f + this%alpha*this%mass(l)*y(3:4, l)
+      acc(:, l) = (this%fext(:, l) - f)/this%mass(l)*this%free(:, l)
+      p_ext = p_ext + dot_product(this%fext(:, l), y(3:4, l))
+    end do
+    ! prescribed dofs: imposed acceleration; the support reaction does work
+    do n = 1, size(this%bc_node)
+      l = this%bc_node(n)
+      comp = this%bc_comp(n)
+      b = this%bc_id(n)
+      acc(comp, l) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
+      if (y(2 + comp, l) /= 0.0_wp) then
+        f(1) = 0.0_wp
+        do q = 1, 4
+          s = lat%node_cells(q, l)
+          if (s > 0) f(1) = f(1) + this%fc(comp, mod(s - 1, 4) + 1, (s - 1)/4 + 1)
+        end do
+        r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + f(1) - this%fext(comp, l)
+        p_ext = p_ext + r*y(2 + comp, l)
+      end if
+    end do
+    ! damping power: mass-proportional on owned nodes, stiffness-proportional on counted cells
+    if (this%alpha > 0.0_wp) then
+      do l = 1, lat%n_owned
+        p_damp = p_damp + this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
+      end do
+    end if
+    if (this%beta > 0.0_wp) then
+      do c = 1, lat%n_cells
+        if (lat%cell_counted(c)) p_damp = p_damp + this%pc(c)
+      end do
+    end if
+  end subroutine model_rate
+
+  !> Kinetic energy of the owned nodes.
+  real(wp) function model_kinetic_energy(this, y) result(e)
+    class(model_t), intent(in) :: this
+    real(wp), intent(in) :: y(:, :)
+    integer :: l
+    e = 0.0_wp
+    do l = 1, size(this%mass)
+      e = e + 0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
+    end do
+  end function model_kinetic_energy
+
+  !> Strain energy of the counted cells, from the last rate evaluation.
+  real(wp) function model_strain_energy(this, lat) result(e)
+    class(model_t), intent(in) :: this
+    type(local_lattice_t), intent(in) :: lat
+    integer :: c
+    e = 0.0_wp
+    do c = 1, lat%n_cells
+      if (lat%cell_counted(c)) e = e + this%ec(c)
+    end do
+  end function model_strain_energy
+end module iem_model

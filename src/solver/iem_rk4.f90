@@ -1,0 +1,100 @@
+!> Classical explicit 4th-order Runge-Kutta step of the first-order system (u, v), with a halo
+!> exchange before every stage's force evaluation.
+module iem_rk4
+  use iem_kinds, only: wp
+  use iem_local_lattice, only: local_lattice_t
+  use iem_halo, only: halo_t
+  use iem_model, only: model_t
+  implicit none
+  private
+  public :: state_t, rk4_first_stage, rk4_finish_step
+
+  !> State vectors of one rank: y = (u_x, u_y, v_x, v_y) per local node, plus RK4 work arrays.
+  type :: state_t
+    !> State at the start of the step (owned and halo nodes).
+    real(wp), allocatable :: y(:, :)
+    !> Stage state (owned and halo nodes).
+    real(wp), allocatable :: ys(:, :)
+    !> Accumulated new state (owned nodes).
+    real(wp), allocatable :: ynew(:, :)
+    !> Accelerations of the current stage (owned nodes).
+    real(wp), allocatable :: acc(:, :)
+    !> Local power of external forces and of damping at stage 1.
+    real(wp) :: p_ext1 = 0.0_wp, p_damp1 = 0.0_wp
+  contains
+    procedure :: init => state_init
+  end type state_t
+
+contains
+
+  !> Allocate the state for n_local nodes of which n_owned are owned; all zero.
+  subroutine state_init(this, n_owned, n_local)
+    class(state_t), intent(inout) :: this
+    integer, intent(in) :: n_owned, n_local
+    if (allocated(this%y)) deallocate(this%y, this%ys, this%ynew, this%acc)
+    allocate(this%y(4, n_local), this%ys(4, n_local), this%ynew(4, n_owned), &
+             this%acc(2, n_owned))
+    this%y = 0.0_wp
+    this%ys = 0.0_wp
+    this%ynew = 0.0_wp
+    this%acc = 0.0_wp
+  end subroutine state_init
+
+  !> Stage 1 at time t: exchange the halo of y and evaluate the rate there. Kept apart so the
+  !> caller can record energies and output of the state y, which this evaluation provides.
+  subroutine rk4_first_stage(model, lat, halo, st, t)
+    type(model_t), intent(inout) :: model
+    type(local_lattice_t), intent(in) :: lat
+    type(halo_t), intent(inout) :: halo
+    type(state_t), intent(inout) :: st
+    real(wp), intent(in) :: t
+    call halo%exchange(st%y)
+    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1)
+  end subroutine rk4_first_stage
+
+  !> Stages 2-4 and the update y <- y + dt/6 (k1 + 2 k2 + 2 k3 + k4); accumulates the local
+  !> external work and damping dissipation of the step with the same weights.
+  subroutine rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp)
+    type(model_t), intent(inout) :: model
+    type(local_lattice_t), intent(in) :: lat
+    type(halo_t), intent(inout) :: halo
+    type(state_t), intent(inout) :: st
+    real(wp), intent(in) :: t, dt
+    real(wp), intent(inout) :: w_ext, w_damp
+    real(wp) :: p_ext, p_damp, h
+    integer :: l, n, stage
+    real(wp), parameter :: weight(4) = [1.0_wp, 2.0_wp, 2.0_wp, 1.0_wp]/6.0_wp
+    real(wp), parameter :: frac(4) = [0.0_wp, 0.5_wp, 0.5_wp, 1.0_wp]
+
+    n = lat%n_owned
+    ! k1 is in st%acc (accelerations) and st%y(3:4) (velocities)
+    do l = 1, n
+      st%ynew(1:2, l) = st%y(1:2, l) + weight(1)*dt*st%y(3:4, l)
+      st%ynew(3:4, l) = st%y(3:4, l) + weight(1)*dt*st%acc(:, l)
+      st%ys(1:2, l) = st%y(1:2, l) + frac(2)*dt*st%y(3:4, l)
+      st%ys(3:4, l) = st%y(3:4, l) + frac(2)*dt*st%acc(:, l)
+    end do
+    w_ext = w_ext + weight(1)*dt*st%p_ext1
+    w_damp = w_damp + weight(1)*dt*st%p_damp1
+    do stage = 2, 4
+      call model%prescribe(st%ys, t + frac(stage)*dt)
+      call halo%exchange(st%ys)
+      call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp)
+      w_ext = w_ext + weight(stage)*dt*p_ext
+      w_damp = w_damp + weight(stage)*dt*p_damp
+      do l = 1, n
+        st%ynew(1:2, l) = st%ynew(1:2, l) + weight(stage)*dt*st%ys(3:4, l)
+        st%ynew(3:4, l) = st%ynew(3:4, l) + weight(stage)*dt*st%acc(:, l)
+      end do
+      if (stage < 4) then
+        h = frac(stage + 1)*dt
+        do l = 1, n
+          st%ys(1:2, l) = st%y(1:2, l) + h*st%ys(3:4, l)
+          st%ys(3:4, l) = st%y(3:4, l) + h*st%acc(:, l)
+        end do
+      end if
+    end do
+    st%y(:, 1:n) = st%ynew
+    call model%prescribe(st%y, t + dt)
+  end subroutine rk4_finish_step
+end module iem_rk4

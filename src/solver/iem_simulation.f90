@@ -1,0 +1,374 @@
+!> A whole run: set up the lattice, model and output from a validated configuration, then
+!> march in time with RK4, recording history, frames and progress.
+module iem_simulation
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_SUM, &
+                     MPI_IN_PLACE, MPI_Wtime, MPI_INTEGER8
+  use iem_kinds, only: wp, i8, mpi_wp
+  use iem_config, only: config_t
+  use iem_grid, only: grid_t
+  use iem_local_lattice, only: local_lattice_t
+  use iem_halo, only: halo_t
+  use iem_decomposition, only: decompose
+  use iem_model, only: model_t
+  use iem_rk4, only: state_t, rk4_first_stage, rk4_finish_step
+  use iem_stable_dt, only: cell_omega_max, rk4_stable_dt
+  use iem_h5_output, only: h5_output_t
+  use iem_build_info, only: iem_version
+  use iem_logger, only: log_info, log_warn
+  use iem_strings, only: itoa, rtoa
+  implicit none
+  private
+  public :: simulation_t
+
+  integer, parameter :: n_energy = 5, history_chunk = 256
+
+  !> One run: configuration, decomposition, model, state, output and the history buffer.
+  type :: simulation_t
+    type(MPI_Comm) :: comm
+    integer :: rank = 0, n_ranks = 1
+    type(config_t) :: cfg
+    type(grid_t) :: grid
+    type(local_lattice_t) :: lat
+    type(halo_t) :: halo
+    type(model_t) :: model
+    type(state_t) :: st
+    type(h5_output_t) :: out
+    real(wp) :: dt = 0.0_wp, dt_limit = 0.0_wp, omega_max = 0.0_wp
+    integer(i8) :: n_steps = 0
+    !> Probes: nearest global node, local index when owned here (0 otherwise).
+    integer(i8), allocatable :: probe_gid(:)
+    integer, allocatable :: probe_local(:)
+    !> History buffer: samples not yet written.
+    integer :: n_buf = 0
+    real(wp), allocatable :: h_time(:), h_energy(:, :), h_pu(:, :, :), h_pv(:, :, :)
+    integer(i8), allocatable :: h_step(:)
+    real(wp), allocatable :: sample(:)
+    real(wp) :: e0 = 0.0_wp, e_scale = 0.0_wp, last_balance = 0.0_wp
+    real(wp) :: w_ext = 0.0_wp, w_damp = 0.0_wp
+    real(wp), allocatable :: ubuf(:, :), vbuf(:, :)
+    logical :: output_open = .false.
+  contains
+    procedure :: setup => simulation_setup
+    procedure :: run => simulation_run
+    procedure :: finish => simulation_finish
+  end type simulation_t
+
+contains
+
+  !> Build everything for the run; collective; stat /= 0 with msg on every rank on an error
+  !> found before any output is written.
+  subroutine simulation_setup(this, cfg, comm, stat, msg)
+    class(simulation_t), intent(inout) :: this
+    type(config_t), intent(in) :: cfg
+    type(MPI_Comm), intent(in) :: comm
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(i8), allocatable :: n_selected(:)
+    integer :: k, np, nb
+    real(wp) :: m_corner
+
+    this%cfg = cfg
+    this%comm = comm
+    call MPI_Comm_rank(comm, this%rank)
+    call MPI_Comm_size(comm, this%n_ranks)
+    associate(g => cfg%geometry)
+      call this%grid%init(g%length, g%height, g%thickness, g%nx, g%ny)
+    end associate
+
+    ! time step: cell-level bound of omega_max, damping included
+    m_corner = 0.25_wp*cfg%material%density*this%grid%lx*this%grid%ly*this%grid%thickness
+    call decompose(this%grid, comm, this%lat, this%halo, stat, msg)
+    if (stat /= 0) return
+    nb = size(cfg%bcs)
+    allocate(n_selected(nb + size(cfg%loads)))
+    call this%model%init(cfg, this%grid, this%lat, n_selected)
+    call MPI_Allreduce(MPI_IN_PLACE, n_selected, size(n_selected), MPI_INTEGER8, MPI_SUM, comm)
+    do k = 1, size(n_selected)
+      if (n_selected(k) == 0) then
+        stat = 1
+        if (k <= nb) then
+          msg = trim(cfg%input_file)//': &bc #'//itoa(k)//" ('"//trim(cfg%bcs(k)%name)// &
+                "'): where = '"//trim(cfg%bcs(k)%set%where)//"' selects no node"
+        else
+          msg = trim(cfg%input_file)//': &load #'//itoa(k - nb)//" ('"// &
+                trim(cfg%loads(k - nb)%name)//"'): where = '"// &
+                trim(cfg%loads(k - nb)%set%where)//"' selects no node"
+        end if
+        return
+      end if
+    end do
+    this%omega_max = cell_omega_max(this%model%k, m_corner)
+    this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta)
+    if (cfg%run%dt > 0.0_wp) then
+      if (cfg%run%dt > this%dt_limit) then
+        stat = 1
+        msg = trim(cfg%input_file)//': &run: dt = '//rtoa(cfg%run%dt)// &
+              ' s is above the stability limit '//rtoa(this%dt_limit)// &
+              ' s of RK4 for this grid and damping (omega_max = '//rtoa(this%omega_max)// &
+              ' rad/s); use dt <= '//rtoa(this%dt_limit)//' or dt = 0 (automatic)'
+        return
+      end if
+      this%dt = cfg%run%dt
+    else
+      this%dt = cfg%run%dt_safety*this%dt_limit
+    end if
+    ! whole number of steps to t_end: dt only shrinks
+    this%n_steps = max(1_i8, ceiling(cfg%run%t_end/this%dt*(1.0_wp - 1.0e-12_wp), i8))
+    this%dt = cfg%run%t_end/real(this%n_steps, wp)
+
+    ! probes
+    np = size(cfg%probes)
+    allocate(this%probe_gid(np), this%probe_local(np))
+    do k = 1, np
+      this%probe_gid(k) = this%grid%nearest_node(cfg%probes(k)%x, cfg%probes(k)%y)
+      this%probe_local(k) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k), 1)
+    end do
+
+    call this%st%init(this%lat%n_owned, this%lat%n_local)
+    call this%model%prescribe(this%st%y, 0.0_wp)
+    allocate(this%h_time(history_chunk), this%h_step(history_chunk))
+    allocate(this%h_energy(n_energy, history_chunk))
+    allocate(this%h_pu(2, np, history_chunk), this%h_pv(2, np, history_chunk))
+    allocate(this%sample(4 + 4*np))
+    allocate(this%ubuf(2, this%lat%n_owned), this%vbuf(2, this%lat%n_owned))
+    stat = 0
+    msg = ''
+  end subroutine simulation_setup
+
+  !> Create the output file, march to t_end, and close the file; stat /= 0 on failure.
+  subroutine simulation_run(this, stat, msg)
+    class(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(i8) :: k
+    real(wp) :: t, t_prev, wall0, wall_last, next_report
+    logical :: diverged
+
+    call open_output(this, stat, msg)
+    if (stat /= 0) return
+    call report_start(this)
+    wall0 = MPI_Wtime()
+    wall_last = wall0
+    next_report = 0.1_wp
+    t_prev = -1.0_wp
+    this%w_ext = 0.0_wp
+    this%w_damp = 0.0_wp
+    do k = 0, this%n_steps
+      t = real(k, wp)*this%dt
+      call rk4_first_stage(this%model, this%lat, this%halo, this%st, t)
+      if (k == 0 .or. k == this%n_steps .or. &
+          crossed(t_prev, t, this%cfg%run%history_interval)) then
+        call record_sample(this, k, t, diverged)
+        if (diverged) then
+          stat = 3
+          msg = 'the solution diverged (non-finite energy) by step '//itoa(k)//', t = '// &
+                rtoa(t)//' s, with dt = '//rtoa(this%dt)//' s (stability limit '// &
+                rtoa(this%dt_limit)//' s)'
+          call flush_history(this, stat)
+          return
+        end if
+      end if
+      if (k == 0 .or. k == this%n_steps .or. &
+          crossed(t_prev, t, this%cfg%run%output_interval)) then
+        call flush_history(this, stat)
+        if (stat == 0) call write_frame(this, k, t, stat)
+        if (stat /= 0) then
+          msg = 'writing output to '//trim(this%cfg%run%output_file)//' failed'
+          return
+        end if
+      end if
+      if (this%rank == 0) call progress(this, k, t, wall0, wall_last, next_report)
+      if (k == this%n_steps) exit
+      call rk4_finish_step(this%model, this%lat, this%halo, this%st, t, this%dt, &
+                           this%w_ext, this%w_damp)
+      t_prev = t
+    end do
+    call flush_history(this, stat)
+    if (stat /= 0) then
+      msg = 'writing the history to '//trim(this%cfg%run%output_file)//' failed'
+      return
+    end if
+    call log_info('done: '//itoa(this%n_steps)//' steps in '//rtoa(MPI_Wtime() - wall0)// &
+                  ' s wall; final energy-balance error '//rtoa(this%last_balance))
+  end subroutine simulation_run
+
+  !> Close the output (marking it complete when the run ended normally).
+  subroutine simulation_finish(this, complete, stat, msg)
+    class(simulation_t), intent(inout) :: this
+    logical, intent(in) :: complete
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    stat = 0
+    msg = ''
+    if (this%output_open) then
+      call this%out%close(complete, stat, msg)
+      this%output_open = .false.
+    end if
+  end subroutine simulation_finish
+
+  !> True when a multiple of interval lies in (t_prev, t].
+  pure logical function crossed(t_prev, t, interval)
+    real(wp), intent(in) :: t_prev, t, interval
+    crossed = floor(t/interval*(1.0_wp + 1.0e-12_wp)) > floor(t_prev/interval*(1.0_wp + 1.0e-12_wp))
+    if (t_prev < 0.0_wp) crossed = .true.
+  end function crossed
+
+  subroutine open_output(this, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=64), allocatable :: names(:)
+    real(wp), allocatable :: pxy(:, :), nxy(:, :)
+    integer(i8), allocatable :: cells(:, :), cell_gids(:)
+    real(wp), allocatable :: coords(:, :)
+    integer :: k, l, nc
+    integer(i8) :: nodes(4)
+
+    associate(p => this%cfg%probes)
+      allocate(names(size(p)), pxy(2, size(p)), nxy(2, size(p)))
+      do k = 1, size(p)
+        names(k) = p(k)%name
+        pxy(:, k) = [p(k)%x, p(k)%y]
+        nxy(:, k) = this%grid%node_xy(this%probe_gid(k))
+      end do
+    end associate
+    call this%out%create(trim(this%cfg%run%output_file), this%comm, this%cfg%run%overwrite, &
+      iem_version, trim(this%cfg%input_file), this%cfg%input_text, trim(this%cfg%run%analysis), &
+      this%grid%n_nodes, this%grid%n_cells, this%lat%gid(1:this%lat%n_owned), names, pxy, &
+      this%probe_gid, nxy, stat, msg)
+    if (stat /= 0) return
+    this%output_open = .true.
+    allocate(coords(2, this%lat%n_owned))
+    do l = 1, this%lat%n_owned
+      coords(:, l) = this%grid%node_xy(this%lat%gid(l))
+    end do
+    nc = count(this%lat%cell_counted)
+    allocate(cells(4, nc), cell_gids(nc))
+    k = 0
+    do l = 1, this%lat%n_cells
+      if (.not. this%lat%cell_counted(l)) cycle
+      k = k + 1
+      nodes = this%grid%cell_corners(this%lat%cell_gid(l))
+      cells(:, k) = nodes
+      cell_gids(k) = this%lat%cell_gid(l)
+    end do
+    call this%out%write_mesh(coords, this%model%mass, cells, cell_gids, this%grid%nx, &
+      this%grid%ny, this%grid%lx, this%grid%ly, this%grid%thickness, &
+      trim(this%cfg%geometry%plane), stat, msg)
+  end subroutine open_output
+
+  !> Gather one history sample (global sums with one Allreduce) into the buffer.
+  subroutine record_sample(this, k, t, diverged)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    logical, intent(out) :: diverged
+    integer :: p, np, b, stat
+    real(wp) :: ke, se, e, scale
+
+    np = size(this%probe_gid)
+    this%sample = 0.0_wp
+    this%sample(1) = this%model%kinetic_energy(this%st%y)
+    this%sample(2) = this%model%strain_energy(this%lat)
+    this%sample(3) = this%w_ext
+    this%sample(4) = this%w_damp
+    do p = 1, np
+      if (this%probe_local(p) > 0) then
+        this%sample(4 + 4*(p - 1) + 1:4 + 4*p) = this%st%y(:, this%probe_local(p))
+      end if
+    end do
+    call MPI_Allreduce(MPI_IN_PLACE, this%sample, size(this%sample), mpi_wp(), MPI_SUM, this%comm)
+    diverged = .not. all(ieee_is_finite(this%sample))
+    if (diverged) return
+    if (this%n_buf == history_chunk) call flush_history(this, stat)
+    b = this%n_buf + 1
+    this%n_buf = b
+    ke = this%sample(1)
+    se = this%sample(2)
+    e = ke + se
+    if (k == 0) then
+      this%e0 = e
+      this%e_scale = 0.0_wp
+    end if
+    ! scale: the largest energy the run has held so far, so that the error stays meaningful
+    ! when the current energy passes through zero
+    this%e_scale = max(this%e_scale, abs(this%sample(3)), e, this%sample(4))
+    scale = max(this%e_scale, tiny(1.0_wp))
+    this%last_balance = abs(e + this%sample(4) - this%sample(3) - this%e0)/scale
+    if (k == 0) this%last_balance = 0.0_wp
+    this%h_time(b) = t
+    this%h_step(b) = k
+    this%h_energy(:, b) = [ke, se, this%sample(3), this%sample(4), this%last_balance]
+    do p = 1, np
+      this%h_pu(:, p, b) = this%sample(4 + 4*(p - 1) + 1:4 + 4*(p - 1) + 2)
+      this%h_pv(:, p, b) = this%sample(4 + 4*(p - 1) + 3:4 + 4*p)
+    end do
+  end subroutine record_sample
+
+  !> Write the buffered history samples to the file.
+  subroutine flush_history(this, stat)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable :: msg
+    integer :: n
+    stat = 0
+    n = this%n_buf
+    if (n == 0 .or. .not. this%output_open) return
+    call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), this%h_energy(:, 1:n), &
+                                this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg)
+    this%n_buf = 0
+  end subroutine flush_history
+
+  subroutine write_frame(this, k, t, stat)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    integer, intent(out) :: stat
+    character(len=:), allocatable :: msg
+    integer :: n
+    n = this%lat%n_owned
+    this%ubuf = this%st%y(1:2, 1:n)
+    this%vbuf = this%st%y(3:4, 1:n)
+    call this%out%write_frame(k, t, this%ubuf, this%vbuf, stat, msg)
+  end subroutine write_frame
+
+  subroutine report_start(this)
+    type(simulation_t), intent(in) :: this
+    call log_info('iem '//iem_version//': '//itoa(this%grid%n_nodes)//' nodes, '// &
+      itoa(this%grid%n_cells)//' cells ('//itoa(this%grid%nx)//' x '//itoa(this%grid%ny)// &
+      '), '//itoa(this%n_ranks)//' ranks')
+    call log_info('time step '//rtoa(this%dt)//' s = '// &
+      rtoa(this%dt/this%dt_limit)//' of the RK4 limit '//rtoa(this%dt_limit)// &
+      ' s (omega_max '//rtoa(this%omega_max)//' rad/s); '//itoa(this%n_steps)//' steps to '// &
+      rtoa(this%cfg%run%t_end)//' s')
+    if (this%model%alpha > 0.0_wp .or. this%model%beta > 0.0_wp) then
+      call log_info('Rayleigh damping: alpha = '//rtoa(this%model%alpha)//' 1/s, beta = '// &
+                    rtoa(this%model%beta)//' s')
+    end if
+  end subroutine report_start
+
+  !> Rank 0: print a progress line at every 10% of the run and every progress_interval s.
+  subroutine progress(this, k, t, wall0, wall_last, next_report)
+    type(simulation_t), intent(in) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    real(wp), intent(inout) :: wall0, wall_last, next_report
+    real(wp) :: now, frac, eta
+    character(len=200) :: line
+    now = MPI_Wtime()
+    frac = real(k, wp)/real(this%n_steps, wp)
+    if (frac + 1.0e-12_wp < next_report .and. now - wall_last < this%cfg%run%progress_interval &
+        .and. k /= this%n_steps) return
+    do while (next_report <= frac + 1.0e-12_wp)
+      next_report = next_report + 0.1_wp
+    end do
+    wall_last = now
+    eta = 0.0_wp
+    if (k > 0) eta = (now - wall0)*(1.0_wp - frac)/frac
+    write(line, '(a,i0,a,i0,a,es10.3,a,es9.2,a,f9.1,a,f9.1,a,es9.2)') 'step ', k, '/', &
+      this%n_steps, '  t ', t, ' s  dt ', this%dt, ' s  wall ', now - wall0, ' s  eta ', eta, &
+      ' s  energy error ', this%last_balance
+    call log_info(trim(line))
+  end subroutine progress
+end module iem_simulation

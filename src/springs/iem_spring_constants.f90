@@ -1,0 +1,47 @@
+!> Spring constants of the IEM cell from energy equivalence (model.md section 2).
+module iem_spring_constants
+  use iem_kinds, only: wp
+  implicit none
+  private
+  public :: cell_constants_t, spring_moduli, cell_constants
+
+  !> Energy coefficients of one cell: Pi = ce*sum eps^2 + ch*sum (eps_a+eps_b)^2 + cg*sum gamma^2.
+  type :: cell_constants_t
+    real(wp) :: lx = 0.0_wp, ly = 0.0_wp
+    real(wp) :: ce = 0.0_wp, ch = 0.0_wp, cg = 0.0_wp
+  end type cell_constants_t
+
+contains
+
+  !> Moduli (Eq, Hq, Gq) of the edge, Poisson and shear springs for plane stress or strain.
+  pure function spring_moduli(young, poisson, plane_strain) result(m)
+    real(wp), intent(in) :: young, poisson
+    logical, intent(in) :: plane_strain
+    real(wp) :: m(3)
+    real(wp) :: e, nu
+    e = young
+    nu = poisson
+    if (plane_strain) then
+      e = young/(1.0_wp - poisson**2)
+      nu = poisson/(1.0_wp - poisson)
+    end if
+    m(1) = e/(1.0_wp + nu)
+    m(2) = nu*e/(2.0_wp*(1.0_wp - nu**2))
+    m(3) = e/(4.0_wp*(1.0_wp + nu))
+  end function spring_moduli
+
+  !> Cell energy coefficients: the moduli times (1/4) S t, with S = lx*ly.
+  pure function cell_constants(young, poisson, plane_strain, lx, ly, thickness) result(k)
+    real(wp), intent(in) :: young, poisson, lx, ly, thickness
+    logical, intent(in) :: plane_strain
+    type(cell_constants_t) :: k
+    real(wp) :: m(3), s
+    m = spring_moduli(young, poisson, plane_strain)
+    s = 0.25_wp*lx*ly*thickness
+    k%lx = lx
+    k%ly = ly
+    k%ce = s*m(1)
+    k%ch = s*m(2)
+    k%cg = s*m(3)
+  end function cell_constants
+end module iem_spring_constants

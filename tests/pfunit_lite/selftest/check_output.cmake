@@ -1,0 +1,43 @@
+# Runs a pfunit_lite self-test and checks it against the comments of its .pf file:
+#   ! expect-exit: zero|nonzero       ! expect-output: <regex>      ! forbid-output: <regex>
+# Usage: cmake -DPF=<file.pf> -P check_output.cmake -- <command> [<args>...]
+set(command)
+set(seen_dashes FALSE)
+math(EXPR last "${CMAKE_ARGC} - 1")
+foreach(i RANGE 1 ${last})
+  if(seen_dashes)
+    list(APPEND command "${CMAKE_ARGV${i}}")
+  elseif(CMAKE_ARGV${i} STREQUAL "--")
+    set(seen_dashes TRUE)
+  endif()
+endforeach()
+
+execute_process(COMMAND ${command} RESULT_VARIABLE rc
+                OUTPUT_VARIABLE output ERROR_VARIABLE output TIMEOUT 100)
+message("${output}")
+message("exit status: ${rc}")
+
+set(problems "")
+file(STRINGS "${PF}" specs REGEX "^! (expect-exit|expect-output|forbid-output): ")
+foreach(spec IN LISTS specs)
+  string(REGEX MATCH "^! ([a-z-]+): " head "${spec}")
+  set(kind "${CMAKE_MATCH_1}")
+  string(LENGTH "${head}" skip)
+  string(SUBSTRING "${spec}" ${skip} -1 value)
+  if(kind STREQUAL "expect-exit")
+    if((value STREQUAL "zero" AND NOT rc STREQUAL "0") OR
+       (value STREQUAL "nonzero" AND (rc STREQUAL "0" OR NOT rc MATCHES "^[0-9]+$")))
+      string(APPEND problems "exit status ${rc}, expected ${value}\n")
+    endif()
+  elseif(kind STREQUAL "expect-output" AND NOT output MATCHES "${value}")
+    string(APPEND problems "missing output: ${value}\n")
+  elseif(kind STREQUAL "forbid-output" AND output MATCHES "${value}")
+    string(APPEND problems "unwanted output: ${value}\n")
+  endif()
+endforeach()
+if(NOT specs)
+  set(problems "no '! expect-...' comments in ${PF}\n")
+endif()
+if(problems)
+  message(FATAL_ERROR "${problems}")
+endif()
