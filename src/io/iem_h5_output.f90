@@ -3,7 +3,7 @@
 !> Every rank calls every procedure (they are collective). Node datasets are global and in
 !> global node order: each rank writes its owned nodes through a file selection built once in
 !> `create`, with collective MPI-IO transfers. Failures are returned in stat/msg, never stopped:
-!> stat = 0 success, h5_output_sidecar_error (rank 0 only) the .xmf failed, other: failure.
+!> stat = 0 success, h5_output_sidecar_error only the .xmf failed, other values: failure.
 module iem_h5_output
   use iem_kinds, only: wp, i8, mpi_i8
   use iem_xdmf, only: xdmf_write, xdmf_frame_name, xdmf_path_of
@@ -29,8 +29,8 @@ module iem_h5_output
   private
   public :: h5_output_t, h5_library_close
 
-  !> stat of a call whose HDF5 work succeeded but whose sidecar (.xmf) could not be written;
-  !> rank 0 alone writes the sidecar, so only rank 0 can return it: a warning, not a failure.
+  !> stat (on every rank) of a call whose HDF5 work succeeded but whose sidecar (.xmf)
+  !> could not be written by rank 0; the HDF5 file is fine.
   integer, parameter, public :: h5_output_sidecar_error = 2
 
   interface
@@ -450,7 +450,7 @@ contains
       stat = tmp_stat
       msg = tmp_msg
     end if
-    if (stat == 0) call write_sidecar(this, stat, msg)
+    call write_sidecar(this, stat, msg)
   end subroutine h5_output_write_mesh
 
   !> Adds the next frame group (u, v of the owned nodes) and appends to /frames/time, step.
@@ -518,24 +518,24 @@ contains
     if (gid >= 0) call h5gclose_f(gid, ierr)
     call close_space(this, fspace, stat, msg)
     call close_space(this, mspace, stat, msg)
-    if (stat /= 0) return
 
-    this%n_frames = this%n_frames + 1
-    if (this%rank == 0) then
-      if (this%n_frames > size(this%frame_times, kind=i8)) then
-        allocate (grown(2*size(this%frame_times)))
-        grown(:size(this%frame_times)) = this%frame_times
-        call move_alloc(grown, this%frame_times)
+    if (stat == 0) then
+      this%n_frames = this%n_frames + 1
+      if (this%rank == 0) then
+        if (this%n_frames > size(this%frame_times, kind=i8)) then
+          allocate (grown(2*size(this%frame_times)))
+          grown(:size(this%frame_times)) = this%frame_times
+          call move_alloc(grown, this%frame_times)
+        end if
+        this%frame_times(this%n_frames) = time
       end if
-      this%frame_times(this%n_frames) = time
     end if
-    if (.not. shapes_ok) then
+    call write_sidecar(this, stat, msg)
+    if (.not. shapes_ok .and. stat /= 1) then
       stat = 1
       msg = 'iem_h5_output: write_frame: u and v must be (2, '//i8_str(this%n_owned)// &
         '), the owned nodes of this rank; nothing written from it to '//where//' in '//this%path
-      return
     end if
-    call write_sidecar(this, stat, msg)
   end subroutine h5_output_write_frame
 
   !> Appends n samples to /history collectively; every rank passes the same data.
@@ -680,7 +680,7 @@ contains
     if (failed(this, ierr, 'h5fclose_f', '/', stat, msg)) continue
     this%file_id = -1
     this%is_open = .false.
-    if (stat == 0) call write_sidecar(this, stat, msg)
+    call write_sidecar(this, stat, msg)
   end subroutine h5_output_close
 
   !> Closes the HDF5 library at program end, after every output file has been closed.
@@ -713,17 +713,28 @@ contains
     end if
   end function failed
 
-  !> Rank 0 rewrites the sidecar with the frames written so far; no-op if stat /= 0.
+  !> Rank 0 rewrites the sidecar with the frames written so far; collective, so that every
+  !> rank learns of a failure (then stat = h5_output_sidecar_error unless already set).
   subroutine write_sidecar(this, stat, msg)
     class(h5_output_t), intent(in) :: this
     integer, intent(inout) :: stat
     character(len=:), allocatable, intent(inout) :: msg
+    character(len=:), allocatable :: xmsg
     integer :: xstat
 
-    if (this%rank /= 0 .or. stat /= 0) return
-    call xdmf_write(this%xmf_path, this%h5_name, this%n_nodes, this%n_cells, &
-      this%frame_times(:this%n_frames), xstat, msg)
-    if (xstat /= 0) stat = h5_output_sidecar_error
+    xstat = 0
+    if (this%rank == 0 .and. stat == 0) then
+      call xdmf_write(this%xmf_path, this%h5_name, this%n_nodes, this%n_cells, &
+        this%frame_times(:this%n_frames), xstat, xmsg)
+    end if
+    call MPI_Bcast(xstat, 1, MPI_INTEGER, 0, this%comm)
+    if (xstat == 0 .or. stat /= 0) return
+    stat = h5_output_sidecar_error
+    if (this%rank == 0) then
+      msg = xmsg
+    else
+      msg = 'iem_h5_output: rank 0 could not write the sidecar '//this%xmf_path
+    end if
   end subroutine write_sidecar
 
   !> Creates and writes the scalar attribute `name` of object `loc` (called `where` in
