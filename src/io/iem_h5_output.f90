@@ -6,6 +6,7 @@
 !> stat = 0 success, h5_output_sidecar_error only the .xmf failed, other values: failure.
 module iem_h5_output
   use iem_kinds, only: wp, i8, mpi_i8
+  use iem_strings, only: itoa
   use iem_xdmf, only: xdmf_write, xdmf_frame_name, xdmf_path_of
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_Bcast, &
     MPI_INTEGER, MPI_LOGICAL, MPI_MAX, MPI_SUM, MPI_INFO_NULL
@@ -149,8 +150,8 @@ contains
     end if
     if (total /= n_nodes) then
       stat = 1
-      msg = 'iem_h5_output: owned_gids of all ranks hold '//i8_str(total)// &
-        ' nodes, not n_nodes = '//i8_str(n_nodes)//' (creating '//path//')'
+      msg = 'iem_h5_output: owned_gids of all ranks hold '//itoa(total)// &
+        ' nodes, not n_nodes = '//itoa(n_nodes)//' (creating '//path//')'
       return
     end if
 
@@ -368,8 +369,8 @@ contains
     end if
     if (total /= this%n_cells) then
       stat = 1
-      msg = 'iem_h5_output: write_mesh: the ranks hold '//i8_str(total)// &
-        ' cells, not n_cells = '//i8_str(this%n_cells)//' ('//this%path//')'
+      msg = 'iem_h5_output: write_mesh: the ranks hold '//itoa(total)// &
+        ' cells, not n_cells = '//itoa(this%n_cells)//' ('//this%path//')'
       return
     end if
 
@@ -533,7 +534,7 @@ contains
     call write_sidecar(this, stat, msg)
     if (.not. shapes_ok .and. stat /= 1) then
       stat = 1
-      msg = 'iem_h5_output: write_frame: u and v must be (2, '//i8_str(this%n_owned)// &
+      msg = 'iem_h5_output: write_frame: u and v must be (2, '//itoa(this%n_owned)// &
         '), the owned nodes of this rank; nothing written from it to '//where//' in '//this%path
     end if
   end subroutine h5_output_write_frame
@@ -1233,13 +1234,4 @@ contains
     end if
   end function check_mesh_args
 
-  !> Decimal text of an integer(i8).
-  pure function i8_str(n) result(s)
-    integer(i8), intent(in) :: n
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-
-    write (buf, '(i0)') n
-    s = trim(buf)
-  end function i8_str
 end module iem_h5_output

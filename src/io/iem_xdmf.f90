@@ -1,6 +1,7 @@
 !> XDMF sidecar that lets ParaView open an iem HDF5 output file (see docs/output.md).
 module iem_xdmf
   use iem_kinds, only: wp, i8
+  use iem_strings, only: itoa
   implicit none
   private
   public :: xdmf_write, xdmf_frame_name, xdmf_path_of
@@ -50,8 +51,8 @@ contains
     stat = 0
     msg = ''
     h5 = xml_escape(h5_name)
-    dims_nodes = i8_str(n_nodes)//' 2'
-    dims_cells = i8_str(n_cells)//' 4'
+    dims_nodes = itoa(n_nodes)//' 2'
+    dims_cells = itoa(n_cells)//' 4'
     open (newunit=unit, file=xmf_path, status='replace', action='write', form='formatted', &
           iostat=stat, iomsg=iom)
     if (stat /= 0) then
@@ -101,7 +102,7 @@ contains
       character(len=*), intent(inout) :: iomsg
 
       write (u, '(a)', iostat=ios, iomsg=iomsg) &
-        ind//'<Topology TopologyType="Quadrilateral" NumberOfElements="'//i8_str(n_cells)//'">', &
+        ind//'<Topology TopologyType="Quadrilateral" NumberOfElements="'//itoa(n_cells)//'">', &
         ind//'  <DataItem Dimensions="'//dims_cells//'" NumberType="Int" Precision="8" '// &
         'Format="HDF">'//h5//':/mesh/cells</DataItem>', &
         ind//'</Topology>', &
@@ -126,15 +127,6 @@ contains
     end subroutine write_vector
   end subroutine xdmf_write
 
-  !> Decimal text of an integer(i8), no blanks.
-  pure function i8_str(n) result(s)
-    integer(i8), intent(in) :: n
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-
-    write (buf, '(i0)') n
-    s = trim(buf)
-  end function i8_str
 
   !> `text` with the XML special characters replaced by entities.
   pure function xml_escape(text) result(s)
