@@ -7,7 +7,7 @@ module iem_model
   use iem_local_lattice, only: local_lattice_t
   use iem_node_sets, only: in_node_set, edge_weight
   use iem_spring_constants, only: cell_constants_t, cell_constants
-  use iem_cell_kernel, only: cell_force
+  use iem_cell_kernel, only: cell_forces
   use iem_time_function, only: tf_value, tf_rate
   use iem_strings, only: itoa
   implicit none
@@ -19,8 +19,8 @@ module iem_model
     type(grid_t) :: grid
     type(cell_constants_t) :: k
     real(wp) :: density = 0.0_wp, alpha = 0.0_wp, beta = 0.0_wp
-    !> Lumped mass of owned nodes.
-    real(wp), allocatable :: mass(:)
+    !> Lumped mass of owned nodes and its inverse.
+    real(wp), allocatable :: mass(:), inv_mass(:)
     !> Prescribed degrees of freedom: owned node, component, bc index.
     integer, allocatable :: bc_node(:), bc_comp(:), bc_id(:)
     real(wp), allocatable :: bc_velocity(:, :)
@@ -30,8 +30,12 @@ module iem_model
     real(wp), allocatable :: load_force(:, :)
     type(time_function_spec_t), allocatable :: load_tf(:)
     real(wp), allocatable :: load_scale(:)
-    !> Work arrays: cell corner forces, cell energies, cell damping power, external force.
-    real(wp), allocatable :: fc(:, :, :), ec(:), pc(:), fext(:, :)
+    !> Corner-force slots of each owned node's cells (SW, SE, NW, NE); a missing cell points
+    !> at the last slot of fc, which stays zero, so the gather needs no branch.
+    integer, allocatable :: node_slot(:, :)
+    !> Work arrays: corner forces fc(2, 4*(cell-1)+corner), cell energies, cell damping
+    !> powers, external forces.
+    real(wp), allocatable :: fc(:, :), ec(:), pc(:), fext(:, :)
     !> Free dofs mask (owned nodes): 1 free, 0 prescribed.
     real(wp), allocatable :: free(:, :)
   contains
@@ -66,7 +70,11 @@ contains
     do l = 1, lat%n_owned
       this%mass(l) = mcell*count(lat%node_cells(:, l) > 0)
     end do
-    allocate(this%fc(2, 4, lat%n_cells), this%ec(lat%n_cells), this%pc(lat%n_cells))
+    this%inv_mass = 1.0_wp/this%mass
+    allocate(this%fc(2, 4*lat%n_cells + 1), this%ec(lat%n_cells), this%pc(lat%n_cells))
+    allocate(this%node_slot(4, lat%n_owned))
+    this%node_slot = lat%node_cells
+    where (this%node_slot == 0) this%node_slot = 4*lat%n_cells + 1
     allocate(this%fext(2, lat%n_owned), this%free(2, lat%n_owned))
     this%fc = 0.0_wp
     this%ec = 0.0_wp
@@ -126,6 +134,7 @@ contains
     end do
     allocate(this%load_node(n), this%load_id(n), this%load_force(2, n))
     allocate(this%load_tf(size(cfg%loads)), this%load_scale(size(cfg%loads)))
+    this%load_scale = huge(1.0_wp)
     n = 0
     do ld = 1, size(cfg%loads)
       this%load_tf(ld) = cfg%loads(ld)%tf
@@ -170,38 +179,35 @@ contains
     real(wp), intent(in) :: t
     real(wp), intent(out) :: acc(:, :)
     real(wp), intent(out) :: p_ext, p_damp
-    real(wp) :: uc(2, 4), vc(2, 4), f(2), r
+    real(wp) :: f(2), r
     integer :: c, q, l, s, b, ld, comp, n
+    logical :: changed
 
     ! cell forces (internal + stiffness damping), energies, damping power
-    do c = 1, lat%n_cells
-      do q = 1, 4
-        uc(:, q) = y(1:2, lat%cell_nodes(q, c))
-        vc(:, q) = y(3:4, lat%cell_nodes(q, c))
-      end do
-      call cell_force(this%k, uc, vc, this%beta, this%fc(:, :, c), this%ec(c), this%pc(c))
-    end do
-    ! external loads
+    call cell_forces(this%k, lat%cell_nodes, y, this%beta, this%fc, this%ec, this%pc)
+    ! external loads: rebuilt only when a time function has changed
+    changed = .false.
     do ld = 1, size(this%load_tf)
-      this%load_scale(ld) = tf_value(this%load_tf(ld), t)
+      r = tf_value(this%load_tf(ld), t)
+      if (r /= this%load_scale(ld)) changed = .true.
+      this%load_scale(ld) = r
     end do
-    this%fext = 0.0_wp
-    do n = 1, size(this%load_node)
-      l = this%load_node(n)
-      this%fext(:, l) = this%fext(:, l) + this%load_force(:, n)*this%load_scale(this%load_id(n))
-    end do
+    if (changed) then
+      this%fext = 0.0_wp
+      do n = 1, size(this%load_node)
+        l = this%load_node(n)
+        this%fext(:, l) = this%fext(:, l) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+      end do
+    end if
     ! gather per node in a fixed cell order, then accelerations
     p_ext = 0.0_wp
     p_damp = 0.0_wp
     do l = 1, lat%n_owned
-      f = 0.0_wp
-      do q = 1, 4
-        s = lat%node_cells(q, l)
-        if (s > 0) f = f + this%fc(:, mod(s - 1, 4) + 1, (s - 1)/4 + 1)
-      end do
-      f = f + this%alpha*this%mass(l)*y(3:4, l)
-      acc(:, l) = (this%fext(:, l) - f)/this%mass(l)*this%free(:, l)
-      p_ext = p_ext + dot_product(this%fext(:, l), y(3:4, l))
+      f = this%fc(:, this%node_slot(1, l)) + this%fc(:, this%node_slot(2, l)) + &
+          this%fc(:, this%node_slot(3, l)) + this%fc(:, this%node_slot(4, l)) + &
+          this%alpha*this%mass(l)*y(3:4, l)
+      acc(:, l) = (this%fext(:, l) - f)*this%inv_mass(l)*this%free(:, l)
+      p_ext = p_ext + this%fext(1, l)*y(3, l) + this%fext(2, l)*y(4, l)
     end do
     ! prescribed dofs: imposed acceleration; the support reaction does work
     do n = 1, size(this%bc_node)
@@ -212,8 +218,7 @@ contains
       if (y(2 + comp, l) /= 0.0_wp) then
         f(1) = 0.0_wp
         do q = 1, 4
-          s = lat%node_cells(q, l)
-          if (s > 0) f(1) = f(1) + this%fc(comp, mod(s - 1, 4) + 1, (s - 1)/4 + 1)
+          f(1) = f(1) + this%fc(comp, this%node_slot(q, l))
         end do
         r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + f(1) - this%fext(comp, l)
         p_ext = p_ext + r*y(2 + comp, l)

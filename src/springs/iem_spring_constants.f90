@@ -8,6 +8,8 @@ module iem_spring_constants
   !> Energy coefficients of one cell: Pi = ce*sum eps^2 + ch*sum (eps_a+eps_b)^2 + cg*sum gamma^2.
   type :: cell_constants_t
     real(wp) :: lx = 0.0_wp, ly = 0.0_wp
+    !> Inverse reference lengths of edges 1..4 (bottom, right, top, left).
+    real(wp) :: il0(4) = 0.0_wp
     real(wp) :: ce = 0.0_wp, ch = 0.0_wp, cg = 0.0_wp
   end type cell_constants_t
 
@@ -40,6 +42,7 @@ contains
     s = 0.25_wp*lx*ly*thickness
     k%lx = lx
     k%ly = ly
+    k%il0 = 1.0_wp/[lx, ly, lx, ly]
     k%ce = s*m(1)
     k%ch = s*m(2)
     k%cg = s*m(3)
