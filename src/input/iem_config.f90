@@ -5,7 +5,7 @@ module iem_config
   private
   public :: config_t, run_config_t, geometry_config_t, material_config_t
   public :: node_set_spec_t, time_function_spec_t, bc_config_t, load_config_t
-  public :: damping_config_t, probe_config_t
+  public :: damping_config_t, probe_config_t, static_config_t
   public :: name_len, path_len
 
   integer, parameter :: name_len = 64, path_len = 1024
@@ -29,6 +29,8 @@ module iem_config
     integer :: nx = 0, ny = 0
     real(wp) :: cell_size = 0.0_wp
     character(len=8) :: plane = 'stress'
+    !> Cell law: 'paper' (the paper's 12 springs) or 'bending' (bending-corrected cell).
+    character(len=8) :: cell = 'paper'
   end type geometry_config_t
 
   !> Linear elastic material (&material).
@@ -76,6 +78,20 @@ module iem_config
     real(wp) :: ratio = 0.0_wp, frequency = 0.0_wp
   end type damping_config_t
 
+  !> Quasi-static analysis by dynamic relaxation (&static; only with analysis = 'static').
+  type :: static_config_t
+    !> Whether the input has a &static group.
+    logical :: given = .false.
+    integer :: load_steps = 10
+    real(wp) :: tolerance = 1.0e-6_wp
+    integer :: max_iterations = 200000
+    !> 'kinetic' (kinetic damping) or 'viscous' (adaptive viscous damping).
+    character(len=8) :: method = 'kinetic'
+    !> 'lumped' (the model's masses, step from the cell bound) or 'gershgorin' (per-dof
+    !> fictitious masses from stiffness row sums, unit step).
+    character(len=12) :: mass = 'lumped'
+  end type static_config_t
+
   !> A named point whose nearest node is recorded in the history.
   type :: probe_config_t
     character(len=name_len) :: name = ''
@@ -90,6 +106,7 @@ module iem_config
     type(geometry_config_t) :: geometry
     type(material_config_t) :: material
     type(damping_config_t) :: damping
+    type(static_config_t) :: static
     type(bc_config_t), allocatable :: bcs(:)
     type(load_config_t), allocatable :: loads(:)
     type(probe_config_t), allocatable :: probes(:)

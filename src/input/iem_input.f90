@@ -13,9 +13,11 @@ module iem_input
   public :: read_config
 
   character(len=*), parameter :: known_groups(*) = [character(len=8) :: &
-    'run', 'geometry', 'material', 'damping', 'bc', 'load', 'probe']
-  logical, parameter :: repeatable(*) = [.false., .false., .false., .false., .true., .true., .true.]
-  logical, parameter :: required(*) = [.true., .true., .true., .false., .false., .false., .false.]
+    'run', 'geometry', 'material', 'damping', 'bc', 'load', 'probe', 'static']
+  logical, parameter :: repeatable(*) = [.false., .false., .false., .false., .true., .true., &
+    .true., .false.]
+  logical, parameter :: required(*) = [.true., .true., .true., .false., .false., .false., &
+    .false., .false.]
 
 contains
 
@@ -45,7 +47,7 @@ contains
       if (k == 0) then
         call fail('unknown namelist group &'//trim(text%groups(g)%name)//' on line '// &
                   itoa(text%groups(g)%first_line)//' (known groups: &run, &geometry, '// &
-                  '&material, &damping, &bc, &load, &probe)')
+                  '&material, &damping, &bc, &load, &probe, &static)')
         return
       end if
       count(k) = count(k) + 1
@@ -83,6 +85,8 @@ contains
       case ('probe')
         ip = ip + 1
         call read_probe(text, g, ip, cfg%probes(ip), stat, msg)
+      case ('static')
+        call read_static(text, g, cfg, stat, msg)
       end select
       if (stat /= 0) then
         msg = trim(path)//': '//msg
@@ -198,6 +202,8 @@ contains
       call parse_load(part, l, ios, m)
     case ('probe')
       call parse_probe(part, p, ios, m)
+    case ('static')
+      call parse_static(part, c, ios, m)
     case default
       ios = 0
     end select
@@ -250,9 +256,13 @@ contains
       return
     end if
     associate(r => cfg%run)
-      if (r%analysis /= 'dynamic') then
+      if (r%analysis /= 'dynamic' .and. r%analysis /= 'static') then
         call bad(label, 'analysis', "'"//trim(r%analysis)//"'", &
-                 "is not available; allowed: 'dynamic'", stat, msg)
+                 "must be 'dynamic' or 'static'", stat, msg)
+      else if (r%analysis == 'static' .and. len(dynamic_only(text, g)) > 0) then
+        call bad(label, dynamic_only(text, g), '', "applies only to analysis = 'dynamic'; "// &
+                 "a static run takes its steps from &static (load_steps) and writes one "// &
+                 "frame and one history sample per load step", stat, msg)
       else if (r%t_end == unset_real) then
         call bad(label, 't_end', '(not given)', 'is required: the end time in s', stat, msg)
       else if (.not. (r%t_end > 0.0_wp)) then
@@ -280,6 +290,25 @@ contains
     end associate
   end subroutine read_run
 
+  !> The first variable of &run (group g) that only a dynamic run uses, or '' if none.
+  function dynamic_only(text, g) result(name)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=:), allocatable :: name
+    character(len=*), parameter :: vars(*) = [character(len=16) :: 'dt', 'dt_safety', &
+      'output_interval', 'history_interval']
+    integer :: k
+    name = ''
+    associate(grp => text%groups(g))
+      do k = 1, grp%n_keys
+        if (findloc(vars, trim(grp%keys(k)), 1) > 0) then
+          name = trim(grp%keys(k))
+          return
+        end if
+      end do
+    end associate
+  end function dynamic_only
+
   ! ----------------------------------------------------------------------------- &geometry
   subroutine parse_geometry(chunk, cfg, ios, iomsg)
     character(len=line_len), intent(in) :: chunk(:)
@@ -288,17 +317,18 @@ contains
     character(len=:), allocatable, intent(out) :: iomsg
     real(wp) :: length, height, thickness, cell_size
     integer :: nx, ny
-    character(len=8) :: plane
+    character(len=8) :: plane, cell
     character(len=256) :: m
-    namelist /geometry/ length, height, thickness, nx, ny, cell_size, plane
+    namelist /geometry/ length, height, thickness, nx, ny, cell_size, plane, cell
     length = unset_real; height = unset_real; thickness = cfg%geometry%thickness
-    nx = 0; ny = 0; cell_size = 0.0_wp; plane = cfg%geometry%plane
+    nx = 0; ny = 0; cell_size = 0.0_wp; plane = cfg%geometry%plane; cell = cfg%geometry%cell
     m = ''
     read(chunk, nml=geometry, iostat=ios, iomsg=m)
     iomsg = trim(m)
     cfg%geometry%length = length; cfg%geometry%height = height
     cfg%geometry%thickness = thickness; cfg%geometry%nx = nx; cfg%geometry%ny = ny
     cfg%geometry%cell_size = cell_size; cfg%geometry%plane = lower(plane)
+    cfg%geometry%cell = lower(cell)
   end subroutine parse_geometry
 
   subroutine read_geometry(text, g, cfg, stat, msg)
@@ -312,7 +342,7 @@ contains
     character(len=*), parameter :: label = '&geometry'
     real(wp) :: nn
     call check_keys(text, g, [character(len=12) :: 'length', 'height', 'thickness', 'nx', 'ny', &
-      'cell_size', 'plane'], label, stat, msg)
+      'cell_size', 'plane', 'cell'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_geometry(chunk, cfg, stat, iomsg)
@@ -334,6 +364,9 @@ contains
         call bad(label, 'thickness', rtoa(o%thickness), 'must be > 0 [m]', stat, msg)
       else if (o%plane /= 'stress' .and. o%plane /= 'strain') then
         call bad(label, 'plane', "'"//trim(o%plane)//"'", "must be 'stress' or 'strain'", &
+                 stat, msg)
+      else if (o%cell /= 'paper' .and. o%cell /= 'bending') then
+        call bad(label, 'cell', "'"//trim(o%cell)//"'", "must be 'paper' or 'bending'", &
                  stat, msg)
       else if (o%cell_size /= 0.0_wp .and. (o%nx /= 0 .or. o%ny /= 0)) then
         call bad(label, 'cell_size', rtoa(o%cell_size), 'cannot be combined with nx, ny', &
@@ -502,6 +535,66 @@ contains
       if (d%frequency == unset_real) d%frequency = 0.0_wp
     end associate
   end subroutine read_damping
+
+  ! ------------------------------------------------------------------------------- &static
+  subroutine parse_static(chunk, cfg, ios, iomsg)
+    character(len=line_len), intent(in) :: chunk(:)
+    type(config_t), intent(inout) :: cfg
+    integer, intent(out) :: ios
+    character(len=:), allocatable, intent(out) :: iomsg
+    integer :: load_steps, max_iterations
+    real(wp) :: tolerance
+    character(len=12) :: method, mass
+    character(len=256) :: m
+    namelist /static/ load_steps, tolerance, max_iterations, method, mass
+    load_steps = cfg%static%load_steps; tolerance = cfg%static%tolerance
+    max_iterations = cfg%static%max_iterations; method = cfg%static%method
+    mass = cfg%static%mass
+    m = ''
+    read(chunk, nml=static, iostat=ios, iomsg=m)
+    iomsg = trim(m)
+    cfg%static%load_steps = load_steps; cfg%static%tolerance = tolerance
+    cfg%static%max_iterations = max_iterations; cfg%static%method = lower(method)
+    cfg%static%mass = lower(mass)
+  end subroutine parse_static
+
+  subroutine read_static(text, g, cfg, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    type(config_t), intent(inout) :: cfg
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=line_len), allocatable :: chunk(:)
+    character(len=:), allocatable :: iomsg
+    character(len=*), parameter :: label = '&static'
+    call check_keys(text, g, [character(len=14) :: 'load_steps', 'tolerance', &
+      'max_iterations', 'method', 'mass'], label, stat, msg)
+    if (stat /= 0) return
+    call text%chunk(g, chunk)
+    call parse_static(chunk, cfg, stat, iomsg)
+    if (stat /= 0) then
+      call read_error(text, g, label, iomsg, chunk, msg)
+      stat = 1
+      return
+    end if
+    cfg%static%given = .true.
+    associate(s => cfg%static)
+      if (s%load_steps < 1) then
+        call bad(label, 'load_steps', itoa(s%load_steps), 'must be >= 1', stat, msg)
+      else if (.not. (s%tolerance > 0.0_wp .and. s%tolerance < 1.0_wp)) then
+        call bad(label, 'tolerance', rtoa(s%tolerance), &
+                 'must be in (0, 1): the relative residual of each load step', stat, msg)
+      else if (s%max_iterations < 1) then
+        call bad(label, 'max_iterations', itoa(s%max_iterations), 'must be >= 1', stat, msg)
+      else if (s%method /= 'kinetic' .and. s%method /= 'viscous') then
+        call bad(label, 'method', "'"//trim(s%method)//"'", "must be 'kinetic' or 'viscous'", &
+                 stat, msg)
+      else if (s%mass /= 'lumped' .and. s%mass /= 'gershgorin') then
+        call bad(label, 'mass', "'"//trim(s%mass)//"'", "must be 'lumped' or 'gershgorin'", &
+                 stat, msg)
+      end if
+    end associate
+  end subroutine read_static
 
   ! ----------------------------------------------------------------------------------- &bc
   subroutine parse_bc(chunk, b, ios, iomsg)
@@ -768,7 +861,8 @@ contains
     end select
   end subroutine check_tf
 
-  !> Checks that involve several groups: probes inside the body, unique probe names.
+  !> Checks that involve several groups: &static only with a static analysis, probes inside
+  !> the body, unique probe names.
   subroutine check_cross(cfg, stat, msg)
     type(config_t), intent(in) :: cfg
     integer, intent(out) :: stat
@@ -777,6 +871,12 @@ contains
     real(wp) :: tol
     stat = 0
     msg = ''
+    if (cfg%static%given .and. cfg%run%analysis /= 'static') then
+      stat = 1
+      msg = "&static is only for analysis = 'static', but &run has analysis = '"// &
+            trim(cfg%run%analysis)//"'; remove &static or set analysis = 'static' in &run"
+      return
+    end if
     tol = 1.0e-9_wp*max(cfg%geometry%length, cfg%geometry%height)
     do k = 1, size(cfg%probes)
       associate(p => cfg%probes(k))

@@ -49,6 +49,10 @@ module iem_h5_output
   integer, parameter :: n_energies = 5
   character(len=*), parameter :: energy_names(n_energies) = [character(len=13) :: &
     'kinetic', 'strain', 'external_work', 'damping', 'balance_error']
+  !> Per-sample series of a static run, in /history/static (docs/output.md).
+  integer, parameter :: n_static = 3
+  character(len=*), parameter :: static_names(n_static) = [character(len=11) :: &
+    'load_factor', 'iterations', 'residual']
   !> Samples per chunk of the extendible datasets (history, /frames/time, /frames/step).
   integer(HSIZE_T), parameter :: series_chunk = 1024
   integer(HSIZE_T), parameter :: one(1) = [1_HSIZE_T]
@@ -78,6 +82,9 @@ module iem_h5_output
     integer(HID_T) :: frames_time_id = -1, frames_step_id = -1
     integer(HID_T) :: hist_time_id = -1, hist_step_id = -1
     integer(HID_T) :: energy_id(n_energies) = -1
+    !> Whether the file is of a static run (analysis = 'static'), with /history/static.
+    logical :: static = .false.
+    integer(HID_T) :: static_id(n_static) = -1
     integer(HID_T), allocatable :: probe_u_id(:), probe_v_id(:)
     !> Group path of each probe, /history/probes/<name> (blank padded), for messages.
     character(len=:), allocatable :: probe_path(:)
@@ -86,6 +93,7 @@ module iem_h5_output
     procedure :: write_mesh => h5_output_write_mesh
     procedure :: write_frame => h5_output_write_frame
     procedure :: write_history => h5_output_write_history
+    procedure :: write_static_settings => h5_output_write_static_settings
     procedure :: close => h5_output_close
   end type h5_output_t
 
@@ -95,9 +103,10 @@ contains
   subroutine h5_output_create(this, path, comm, overwrite, version, input_file, input_text, &
       analysis, n_nodes, n_cells, owned_gids, probe_names, probe_xy, probe_node, probe_node_xy, &
       stat, msg)
-    ! Writes the header attributes, creates the groups and the empty history datasets, and
-    ! builds this rank's node selection. owned_gids: this rank's nodes, 0-based, strictly
-    ! ascending, a partition of 0..n_nodes-1 over the ranks. The strings and probe arguments
+    ! Writes the header attributes, creates the groups and the empty history datasets (with
+    ! /history/static when analysis is 'static'), and builds this rank's node selection.
+    ! owned_gids: this rank's nodes, 0-based, strictly ascending, a partition of
+    ! 0..n_nodes-1 over the ranks. The strings and probe arguments
     ! must be the same on every rank. comm is kept (not duplicated) while the file is open.
     class(h5_output_t), intent(inout) :: this
     character(len=*), intent(in) :: path, version, input_file, input_text, analysis
@@ -112,7 +121,7 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     character(len=:), allocatable :: local_msg, pname, tmp_msg
-    integer(HID_T) :: fapl, hist_id, energy_gid, probes_gid, pgid
+    integer(HID_T) :: fapl, hist_id, energy_gid, probes_gid, pgid, static_gid
     integer :: ierr, bad, any_bad, p, k, tmp_stat
     integer(i8) :: total
     logical :: exists
@@ -135,6 +144,7 @@ contains
     this%n_owned = size(owned_gids, kind=i8)
     this%n_frames = 0
     this%n_samples = 0
+    this%static = analysis == 'static'
 
     ! Argument checks, agreed by all ranks before the first collective HDF5 call.
     local_msg = check_create_args(n_nodes, n_cells, owned_gids, probe_names, probe_xy, &
@@ -182,6 +192,7 @@ contains
     energy_gid = -1
     probes_gid = -1
     pgid = -1
+    static_gid = -1
     work: block
       if (.not. library_open) then
         call h5open_f(ierr)
@@ -260,6 +271,17 @@ contains
           H5T_IEEE_F64LE, 0, this%energy_id(k), stat, msg)
       end do
       if (stat /= 0) exit work
+      if (this%static) then
+        call h5gcreate_f(hist_id, 'static', static_gid, ierr)
+        if (failed(this, ierr, 'h5gcreate_f', '/history/static', stat, msg)) exit work
+        call create_series(this, static_gid, '/history/static/', trim(static_names(1)), &
+          H5T_IEEE_F64LE, 0, this%static_id(1), stat, msg)
+        call create_series(this, static_gid, '/history/static/', trim(static_names(2)), &
+          H5T_STD_I64LE, 0, this%static_id(2), stat, msg)
+        call create_series(this, static_gid, '/history/static/', trim(static_names(3)), &
+          H5T_IEEE_F64LE, 0, this%static_id(3), stat, msg)
+        if (stat /= 0) exit work
+      end if
       call h5gcreate_f(hist_id, 'probes', probes_gid, ierr)
       if (failed(this, ierr, 'h5gcreate_f', '/history/probes', stat, msg)) exit work
       do p = 1, size(probe_names)
@@ -297,6 +319,10 @@ contains
     tmp_stat = 0
     tmp_msg = ''
     if (pgid >= 0) call h5gclose_f(pgid, ierr)
+    if (static_gid >= 0) then
+      call h5gclose_f(static_gid, ierr)
+      if (failed(this, ierr, 'h5gclose_f', '/history/static', tmp_stat, tmp_msg)) continue
+    end if
     if (probes_gid >= 0) then
       call h5gclose_f(probes_gid, ierr)
       if (failed(this, ierr, 'h5gclose_f', '/history/probes', tmp_stat, tmp_msg)) continue
@@ -540,16 +566,21 @@ contains
   end subroutine h5_output_write_frame
 
   !> Appends n samples to /history collectively; every rank passes the same data.
-  subroutine h5_output_write_history(this, n, time, step, energies, probe_u, probe_v, stat, msg)
+  subroutine h5_output_write_history(this, n, time, step, energies, probe_u, probe_v, stat, msg, &
+      load_factor, iterations, residual)
     ! time(n), step(n), energies(5, n) (kinetic, strain, external_work, damping,
-    ! balance_error), probe_u and probe_v (2, n_probes, n). Rank 0 selects the data, the
-    ! others select nothing, all take part in the extend and the write.
+    ! balance_error), probe_u and probe_v (2, n_probes, n). A static run's file (analysis =
+    ! 'static') also takes load_factor(n), iterations(n), residual(n) for /history/static,
+    ! and only it. Rank 0 selects the data, the others select nothing, all take part in the
+    ! extend and the write.
     class(h5_output_t), intent(inout) :: this
     integer, intent(in) :: n
     real(wp), intent(in) :: time(:), energies(:, :), probe_u(:, :, :), probe_v(:, :, :)
     integer(i8), intent(in) :: step(:)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
+    real(wp), intent(in), optional :: load_factor(:), residual(:)
+    integer(i8), intent(in), optional :: iterations(:)
     real(wp), allocatable :: buf1(:), buf2(:, :)
     integer(HID_T) :: fspace, mspace
     integer(HSIZE_T) :: dims1(1), dims2(2)
@@ -573,6 +604,21 @@ contains
       msg = 'iem_h5_output: write_history: array shapes do not match n and the probes of ' &
         //this%path
       return
+    end if
+    if (this%static .neqv. (present(load_factor) .and. present(iterations) .and. &
+        present(residual))) then
+      stat = 1
+      msg = 'iem_h5_output: write_history: load_factor, iterations and residual are needed '// &
+        'for, and only for, the file of a static run ('//this%path//')'
+      return
+    end if
+    if (this%static) then
+      if (size(load_factor) < n .or. size(iterations) < n .or. size(residual) < n) then
+        stat = 1
+        msg = 'iem_h5_output: write_history: the static series are shorter than n ('// &
+          this%path//')'
+        return
+      end if
     end if
     if (n == 0) return
     nn = int(n, i8)
@@ -637,6 +683,31 @@ contains
         call close_space(this, fspace, stat, msg)
         call close_space(this, mspace, stat, msg)
       end do
+
+      if (this%static) then
+        do k = 1, n_static
+          call prepare_append(this, this%static_id(k), '/history/static/'// &
+            trim(static_names(k)), 0, this%n_samples, nn, fspace, mspace, stat, msg)
+          if (stat /= 0) exit work
+          select case (k)
+          case (1)
+            buf1 = load_factor(:n)
+            call h5dwrite_f(this%static_id(k), this%real_mtype, buf1, dims1, ierr, mspace, &
+              fspace, this%xfer_id)
+          case (2)
+            call h5dwrite_f(this%static_id(k), this%int_mtype, iterations(:n), dims1, ierr, &
+              mspace, fspace, this%xfer_id)
+          case default
+            buf1 = residual(:n)
+            call h5dwrite_f(this%static_id(k), this%real_mtype, buf1, dims1, ierr, mspace, &
+              fspace, this%xfer_id)
+          end select
+          if (failed(this, ierr, 'h5dwrite_f', '/history/static/'//trim(static_names(k)), &
+            stat, msg)) exit work
+          call close_space(this, fspace, stat, msg)
+          call close_space(this, mspace, stat, msg)
+        end do
+      end if
       call h5fflush_f(this%file_id, H5F_SCOPE_GLOBAL_F, ierr)
       if (failed(this, ierr, 'h5fflush_f', '/', stat, msg)) exit work
     end block work
@@ -644,6 +715,39 @@ contains
     call close_space(this, mspace, stat, msg)
     if (stat == 0) this%n_samples = this%n_samples + nn
   end subroutine h5_output_write_history
+
+  !> Writes the settings of a static run as attributes of /history/static; collective, the
+  !> same values on every rank.
+  subroutine h5_output_write_static_settings(this, load_steps, tolerance, max_iterations, &
+      method, mass, check_interval, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    integer, intent(in) :: load_steps, max_iterations, check_interval
+    real(wp), intent(in) :: tolerance
+    character(len=*), intent(in) :: method, mass
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(HID_T) :: gid
+    integer :: ierr
+    character(len=*), parameter :: where = '/history/static'
+
+    stat = 0
+    msg = ''
+    if (.not. (this%is_open .and. this%static)) then
+      stat = 1
+      msg = 'iem_h5_output: write_static_settings needs the open file of a static run'
+      return
+    end if
+    call h5gopen_f(this%file_id, 'history/static', gid, ierr)
+    if (failed(this, ierr, 'h5gopen_f', where, stat, msg)) return
+    call put_attr(this, gid, where, 'load_steps', stat, msg, ival=load_steps)
+    call put_attr(this, gid, where, 'tolerance', stat, msg, rval=tolerance)
+    call put_attr(this, gid, where, 'max_iterations', stat, msg, ival=max_iterations)
+    call put_attr(this, gid, where, 'method', stat, msg, text=method)
+    call put_attr(this, gid, where, 'mass', stat, msg, text=mass)
+    call put_attr(this, gid, where, 'check_interval', stat, msg, ival=check_interval)
+    call h5gclose_f(gid, ierr)
+    if (failed(this, ierr, 'h5gclose_f', where, stat, msg)) return
+  end subroutine h5_output_write_static_settings
 
   !> Closes the file collectively, after setting complete = 1 as the last write if `complete`.
   subroutine h5_output_close(this, complete, stat, msg)
@@ -1089,6 +1193,10 @@ contains
     call close_dset(this, this%hist_step_id, '/history/step', stat, msg)
     do k = 1, n_energies
       call close_dset(this, this%energy_id(k), '/history/energy/'//trim(energy_names(k)), &
+        stat, msg)
+    end do
+    do k = 1, n_static
+      call close_dset(this, this%static_id(k), '/history/static/'//trim(static_names(k)), &
         stat, msg)
     end do
     if (allocated(this%probe_u_id)) then

@@ -30,12 +30,10 @@ module iem_model
     real(wp), allocatable :: load_force(:, :)
     type(time_function_spec_t), allocatable :: load_tf(:)
     real(wp), allocatable :: load_scale(:)
-    !> Corner-force slots of each owned node's cells (SW, SE, NW, NE); a missing cell points
-    !> at the last slot of fc, which stays zero, so the gather needs no branch.
-    integer, allocatable :: node_slot(:, :)
-    !> Work arrays: corner forces fc(2, 4*(cell-1)+corner), cell energies, cell damping
-    !> powers, external forces.
-    real(wp), allocatable :: fc(:, :), ec(:), pc(:), fext(:, :)
+    !> Work arrays: cell forces summed per local node, external forces of owned nodes.
+    real(wp), allocatable :: f(:, :), fext(:, :)
+    !> Strain energy of the counted cells at the last rate evaluation.
+    real(wp) :: energy = 0.0_wp
     !> Free dofs mask (owned nodes): 1 free, 0 prescribed.
     real(wp), allocatable :: free(:, :)
   contains
@@ -62,7 +60,8 @@ contains
     this%grid = grid
     this%density = cfg%material%density
     this%k = cell_constants(cfg%material%young, cfg%material%poisson, &
-                            cfg%geometry%plane == 'strain', grid%lx, grid%ly, grid%thickness)
+                            cfg%geometry%plane == 'strain', grid%lx, grid%ly, grid%thickness, &
+                            bending=cfg%geometry%cell == 'bending')
     this%alpha = cfg%damping%alpha
     this%beta = cfg%damping%beta
     mcell = 0.25_wp*this%density*grid%lx*grid%ly*grid%thickness
@@ -71,14 +70,9 @@ contains
       this%mass(l) = mcell*count(lat%node_cells(:, l) > 0)
     end do
     this%inv_mass = 1.0_wp/this%mass
-    allocate(this%fc(2, 4*lat%n_cells + 1), this%ec(lat%n_cells), this%pc(lat%n_cells))
-    allocate(this%node_slot(4, lat%n_owned))
-    this%node_slot = lat%node_cells
-    where (this%node_slot == 0) this%node_slot = 4*lat%n_cells + 1
+    allocate(this%f(2, lat%n_local))
     allocate(this%fext(2, lat%n_owned), this%free(2, lat%n_owned))
-    this%fc = 0.0_wp
-    this%ec = 0.0_wp
-    this%pc = 0.0_wp
+    this%f = 0.0_wp
     this%fext = 0.0_wp
     n_selected = 0
 
@@ -180,11 +174,13 @@ contains
     real(wp), intent(out) :: acc(:, :)
     real(wp), intent(out) :: p_ext, p_damp
     real(wp) :: f(2), r
-    integer :: c, q, l, s, b, ld, comp, n
+    integer :: l, b, ld, comp, n
     logical :: changed
 
-    ! cell forces (internal + stiffness damping), energies, damping power
-    call cell_forces(this%k, lat%cell_nodes, y, this%beta, this%fc, this%ec, this%pc)
+    ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
+    ! bitwise the same on any number of ranks; energy and damping power of counted cells
+    call cell_forces(this%k, lat%cell_nodes, lat%cell_counted, y, this%beta, this%f, &
+                     this%energy, p_damp)
     ! external loads: rebuilt only when a time function has changed
     changed = .false.
     do ld = 1, size(this%load_tf)
@@ -199,13 +195,10 @@ contains
         this%fext(:, l) = this%fext(:, l) + this%load_force(:, n)*this%load_scale(this%load_id(n))
       end do
     end if
-    ! gather per node in a fixed cell order, then accelerations
+    ! accelerations
     p_ext = 0.0_wp
-    p_damp = 0.0_wp
     do l = 1, lat%n_owned
-      f = this%fc(:, this%node_slot(1, l)) + this%fc(:, this%node_slot(2, l)) + &
-          this%fc(:, this%node_slot(3, l)) + this%fc(:, this%node_slot(4, l)) + &
-          this%alpha*this%mass(l)*y(3:4, l)
+      f = this%f(:, l) + this%alpha*this%mass(l)*y(3:4, l)
       acc(:, l) = (this%fext(:, l) - f)*this%inv_mass(l)*this%free(:, l)
       p_ext = p_ext + this%fext(1, l)*y(3, l) + this%fext(2, l)*y(4, l)
     end do
@@ -216,23 +209,15 @@ contains
       b = this%bc_id(n)
       acc(comp, l) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
       if (y(2 + comp, l) /= 0.0_wp) then
-        f(1) = 0.0_wp
-        do q = 1, 4
-          f(1) = f(1) + this%fc(comp, this%node_slot(q, l))
-        end do
-        r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + f(1) - this%fext(comp, l)
+        r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + this%f(comp, l) - &
+            this%fext(comp, l)
         p_ext = p_ext + r*y(2 + comp, l)
       end if
     end do
-    ! damping power: mass-proportional on owned nodes, stiffness-proportional on counted cells
+    ! damping power: stiffness-proportional from the cells, mass-proportional on owned nodes
     if (this%alpha > 0.0_wp) then
       do l = 1, lat%n_owned
         p_damp = p_damp + this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
-      end do
-    end if
-    if (this%beta > 0.0_wp) then
-      do c = 1, lat%n_cells
-        if (lat%cell_counted(c)) p_damp = p_damp + this%pc(c)
       end do
     end if
   end subroutine model_rate
@@ -248,14 +233,9 @@ contains
     end do
   end function model_kinetic_energy
 
-  !> Strain energy of the counted cells, from the last rate evaluation.
-  real(wp) function model_strain_energy(this, lat) result(e)
+  !> Strain energy of this rank's counted cells, from the last rate evaluation.
+  real(wp) function model_strain_energy(this) result(e)
     class(model_t), intent(in) :: this
-    type(local_lattice_t), intent(in) :: lat
-    integer :: c
-    e = 0.0_wp
-    do c = 1, lat%n_cells
-      if (lat%cell_counted(c)) e = e + this%ec(c)
-    end do
+    e = this%energy
   end function model_strain_energy
 end module iem_model

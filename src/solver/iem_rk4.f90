@@ -5,6 +5,7 @@ module iem_rk4
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_model, only: model_t
+  use iem_timers, only: timer_start, timer_stop, t_force, t_halo, t_update
   implicit none
   private
   public :: state_t, rk4_first_stage, rk4_finish_step
@@ -48,8 +49,12 @@ contains
     type(halo_t), intent(inout) :: halo
     type(state_t), intent(inout) :: st
     real(wp), intent(in) :: t
+    call timer_start(t_halo)
     call halo%exchange(st%y)
+    call timer_stop(t_halo)
+    call timer_start(t_force)
     call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1)
+    call timer_stop(t_force)
   end subroutine rk4_first_stage
 
   !> Stages 2-4 and the update y <- y + dt/6 (k1 + 2 k2 + 2 k3 + k4); accumulates the local
@@ -67,6 +72,7 @@ contains
     real(wp), parameter :: frac(4) = [0.0_wp, 0.5_wp, 0.5_wp, 1.0_wp]
 
     n = lat%n_owned
+    call timer_start(t_update)
     ! k1 is in st%acc (accelerations) and st%y(3:4) (velocities)
     do l = 1, n
       st%ynew(1:2, l) = st%y(1:2, l) + weight(1)*dt*st%y(3:4, l)
@@ -78,8 +84,14 @@ contains
     w_damp = w_damp + weight(1)*dt*st%p_damp1
     do stage = 2, 4
       call model%prescribe(st%ys, t + frac(stage)*dt)
+      call timer_stop(t_update)
+      call timer_start(t_halo)
       call halo%exchange(st%ys)
+      call timer_stop(t_halo)
+      call timer_start(t_force)
       call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp)
+      call timer_stop(t_force)
+      call timer_start(t_update)
       w_ext = w_ext + weight(stage)*dt*p_ext
       w_damp = w_damp + weight(stage)*dt*p_damp
       do l = 1, n
@@ -96,5 +108,6 @@ contains
     end do
     st%y(:, 1:n) = st%ynew
     call model%prescribe(st%y, t + dt)
+    call timer_stop(t_update)
   end subroutine rk4_finish_step
 end module iem_rk4

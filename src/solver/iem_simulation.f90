@@ -1,11 +1,12 @@
 !> A whole run: set up the lattice, model and output from a validated configuration, then
-!> march in time with RK4, recording history, frames and progress.
+!> march in time with RK4 (analysis = 'dynamic') or relax load step by load step (analysis =
+!> 'static'), recording history, frames and progress.
 module iem_simulation
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_SUM, &
+  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_SUM, MPI_MAX, &
                      MPI_IN_PLACE, MPI_Wtime, MPI_INTEGER8
   use iem_kinds, only: wp, i8, mpi_wp
-  use iem_config, only: config_t
+  use iem_config, only: config_t, damping_config_t
   use iem_grid, only: grid_t
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
@@ -13,9 +14,12 @@ module iem_simulation
   use iem_model, only: model_t
   use iem_rk4, only: state_t, rk4_first_stage, rk4_finish_step
   use iem_stable_dt, only: cell_omega_max, rk4_stable_dt
+  use iem_relaxation, only: relaxation_t, relax_result_t, relax_check_interval
   use iem_h5_output, only: h5_output_t
   use iem_build_info, only: iem_version
   use iem_logger, only: log_info, log_warn
+  use iem_timers, only: timer_start, timer_stop, timer_total, timer_names, n_timers, t_output, &
+                        peak_rss_bytes
   use iem_strings, only: itoa, rtoa
   implicit none
   private
@@ -33,6 +37,9 @@ module iem_simulation
     type(halo_t) :: halo
     type(model_t) :: model
     type(state_t) :: st
+    !> Dynamic relaxation of a static run.
+    type(relaxation_t) :: relax
+    logical :: static = .false.
     type(h5_output_t) :: out
     real(wp) :: dt = 0.0_wp, dt_limit = 0.0_wp, omega_max = 0.0_wp
     integer(i8) :: n_steps = 0
@@ -43,6 +50,9 @@ module iem_simulation
     integer :: n_buf = 0
     real(wp), allocatable :: h_time(:), h_energy(:, :), h_pu(:, :, :), h_pv(:, :, :)
     integer(i8), allocatable :: h_step(:)
+    !> Static runs: load factor, iterations and relative residual of each buffered sample.
+    real(wp), allocatable :: h_load(:), h_res(:)
+    integer(i8), allocatable :: h_iter(:)
     real(wp), allocatable :: sample(:)
     real(wp) :: e0 = 0.0_wp, e_scale = 0.0_wp, last_balance = 0.0_wp
     real(wp) :: w_ext = 0.0_wp, w_damp = 0.0_wp
@@ -69,6 +79,13 @@ contains
     real(wp) :: m_corner
 
     this%cfg = cfg
+    this%static = cfg%run%analysis == 'static'
+    if (this%static) then
+      ! a static run has no damping: relaxation brings its own
+      if (cfg%damping%kind /= 'none') call log_warn('&damping is ignored in a static analysis '// &
+        '(dynamic relaxation damps its own fictitious motion)')
+      this%cfg%damping = damping_config_t()
+    end if
     this%comm = comm
     call MPI_Comm_rank(comm, this%rank)
     call MPI_Comm_size(comm, this%n_ranks)
@@ -82,7 +99,7 @@ contains
     if (stat /= 0) return
     nb = size(cfg%bcs)
     allocate(n_selected(nb + size(cfg%loads)))
-    call this%model%init(cfg, this%grid, this%lat, n_selected)
+    call this%model%init(this%cfg, this%grid, this%lat, n_selected)
     call MPI_Allreduce(MPI_IN_PLACE, n_selected, size(n_selected), MPI_INTEGER8, MPI_SUM, comm)
     do k = 1, size(n_selected)
       if (n_selected(k) == 0) then
@@ -99,23 +116,30 @@ contains
       end if
     end do
     this%omega_max = cell_omega_max(this%model%k, m_corner)
-    this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta)
-    if (cfg%run%dt > 0.0_wp) then
-      if (cfg%run%dt > this%dt_limit) then
-        stat = 1
-        msg = trim(cfg%input_file)//': &run: dt = '//rtoa(cfg%run%dt)// &
-              ' s is above the stability limit '//rtoa(this%dt_limit)// &
-              ' s of RK4 for this grid and damping (omega_max = '//rtoa(this%omega_max)// &
-              ' rad/s); use dt <= '//rtoa(this%dt_limit)//' or dt = 0 (automatic)'
-        return
-      end if
-      this%dt = cfg%run%dt
+    if (this%static) then
+      ! load steps along the pseudo-time of the load path; dt is one load step's length
+      call this%relax%init(this%model, this%lat, comm, cfg%static, cfg%run%t_end)
+      this%n_steps = cfg%static%load_steps
+      this%dt = cfg%run%t_end/real(this%n_steps, wp)
     else
-      this%dt = cfg%run%dt_safety*this%dt_limit
+      this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta)
+      if (cfg%run%dt > 0.0_wp) then
+        if (cfg%run%dt > this%dt_limit) then
+          stat = 1
+          msg = trim(cfg%input_file)//': &run: dt = '//rtoa(cfg%run%dt)// &
+                ' s is above the stability limit '//rtoa(this%dt_limit)// &
+                ' s of RK4 for this grid and damping (omega_max = '//rtoa(this%omega_max)// &
+                ' rad/s); use dt <= '//rtoa(this%dt_limit)//' or dt = 0 (automatic)'
+          return
+        end if
+        this%dt = cfg%run%dt
+      else
+        this%dt = cfg%run%dt_safety*this%dt_limit
+      end if
+      ! whole number of steps to t_end: dt only shrinks
+      this%n_steps = max(1_i8, ceiling(cfg%run%t_end/this%dt*(1.0_wp - 1.0e-12_wp), i8))
+      this%dt = cfg%run%t_end/real(this%n_steps, wp)
     end if
-    ! whole number of steps to t_end: dt only shrinks
-    this%n_steps = max(1_i8, ceiling(cfg%run%t_end/this%dt*(1.0_wp - 1.0e-12_wp), i8))
-    this%dt = cfg%run%t_end/real(this%n_steps, wp)
 
     ! probes
     np = size(cfg%probes)
@@ -130,6 +154,7 @@ contains
     allocate(this%h_time(history_chunk), this%h_step(history_chunk))
     allocate(this%h_energy(n_energy, history_chunk))
     allocate(this%h_pu(2, np, history_chunk), this%h_pv(2, np, history_chunk))
+    allocate(this%h_load(history_chunk), this%h_res(history_chunk), this%h_iter(history_chunk))
     allocate(this%sample(4 + 4*np))
     allocate(this%ubuf(2, this%lat%n_owned), this%vbuf(2, this%lat%n_owned))
     stat = 0
@@ -147,6 +172,10 @@ contains
 
     call open_output(this, stat, msg)
     if (stat /= 0) return
+    if (this%static) then
+      call run_static(this, stat, msg)
+      return
+    end if
     call report_start(this)
     wall0 = MPI_Wtime()
     wall_last = wall0
@@ -171,8 +200,10 @@ contains
       end if
       if (k == 0 .or. k == this%n_steps .or. &
           crossed(t_prev, t, this%cfg%run%output_interval)) then
+        call timer_start(t_output)
         call flush_history(this, stat)
         if (stat == 0) call write_frame(this, k, t, stat)
+        call timer_stop(t_output)
         if (stat /= 0) then
           msg = 'writing output to '//trim(this%cfg%run%output_file)//' failed'
           return
@@ -191,7 +222,40 @@ contains
     end if
     call log_info('done: '//itoa(this%n_steps)//' steps in '//rtoa(MPI_Wtime() - wall0)// &
                   ' s wall; final energy-balance error '//rtoa(this%last_balance))
+    call report_performance(this, MPI_Wtime() - wall0)
   end subroutine simulation_run
+
+  !> Rank 0 reports throughput, where the time went (largest over ranks) and peak memory.
+  subroutine report_performance(this, wall)
+    type(simulation_t), intent(in) :: this
+    real(wp), intent(in) :: wall
+    real(wp) :: t(n_timers), mem(2), work
+    character(len=300) :: line
+    character(len=8) :: pct
+    integer :: k
+    do k = 1, n_timers
+      t(k) = timer_total(k)
+    end do
+    call MPI_Allreduce(MPI_IN_PLACE, t, n_timers, mpi_wp(), MPI_MAX, this%comm)
+    mem = real(peak_rss_bytes(), wp)/1048576.0_wp
+    call MPI_Allreduce(MPI_IN_PLACE, mem(1), 1, mpi_wp(), MPI_MAX, this%comm)
+    call MPI_Allreduce(MPI_IN_PLACE, mem(2), 1, mpi_wp(), MPI_SUM, this%comm)
+    work = real(this%grid%n_nodes, wp)*real(this%n_steps, wp)
+    write(line, '(a,es10.3,a,es10.3,a,es10.3,a,es10.3,a)') 'performance: ', work, &
+      ' node-steps in ', wall, ' s: ', work/wall, ' node-steps/s (', &
+      work/wall/this%n_ranks, ' per rank)'
+    call log_info(trim(line))
+    line = 'time in'
+    do k = 1, n_timers
+      write(pct, '(f6.1)') 100.0_wp*t(k)/wall
+      line = trim(line)//' '//trim(timer_names(k))//' '//trim(adjustl(pct))//'%'
+      if (k < n_timers) line = trim(line)//','
+    end do
+    call log_info(trim(line)//' (largest over ranks)')
+    write(line, '(a,f0.1,a,f0.1,a)') 'memory: peak ', max(mem(1), 0.1_wp), &
+      ' MB per rank (largest), ', max(mem(2), 0.1_wp), ' MB in all'
+    call log_info(trim(line))
+  end subroutine report_performance
 
   !> Close the output (marking it complete when the run ended normally).
   subroutine simulation_finish(this, complete, stat, msg)
@@ -256,6 +320,11 @@ contains
     call this%out%write_mesh(coords, this%model%mass, cells, cell_gids, this%grid%nx, &
       this%grid%ny, this%grid%lx, this%grid%ly, this%grid%thickness, &
       trim(this%cfg%geometry%plane), stat, msg)
+    if (stat /= 0 .or. .not. this%static) return
+    associate(s => this%cfg%static)
+      call this%out%write_static_settings(s%load_steps, s%tolerance, s%max_iterations, &
+        trim(s%method), trim(s%mass), relax_check_interval, stat, msg)
+    end associate
   end subroutine open_output
 
   !> Gather one history sample (global sums with one Allreduce) into the buffer.
@@ -270,7 +339,7 @@ contains
     np = size(this%probe_gid)
     this%sample = 0.0_wp
     this%sample(1) = this%model%kinetic_energy(this%st%y)
-    this%sample(2) = this%model%strain_energy(this%lat)
+    this%sample(2) = this%model%strain_energy()
     this%sample(3) = this%w_ext
     this%sample(4) = this%w_damp
     do p = 1, np
@@ -315,8 +384,14 @@ contains
     stat = 0
     n = this%n_buf
     if (n == 0 .or. .not. this%output_open) return
-    call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), this%h_energy(:, 1:n), &
-                                this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg)
+    if (this%static) then
+      call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
+        this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg, &
+        load_factor=this%h_load(1:n), iterations=this%h_iter(1:n), residual=this%h_res(1:n))
+    else
+      call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
+        this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg)
+    end if
     this%n_buf = 0
   end subroutine flush_history
 
@@ -332,6 +407,87 @@ contains
     this%vbuf = this%st%y(3:4, 1:n)
     call this%out%write_frame(k, t, this%ubuf, this%vbuf, stat, msg)
   end subroutine write_frame
+
+  !> The load steps of a static run: relax to equilibrium at each pseudo-time t_k = k t_end/N
+  !> (k = 0: the equilibrium at t = 0, usually the unloaded state), then record one history
+  !> sample and one frame; stat /= 0 when a step does not converge or diverges.
+  subroutine run_static(this, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    type(relax_result_t) :: res
+    integer(i8) :: k, total_iterations
+    integer :: b, stat2
+    real(wp) :: t, t_prev, wall0, wall_step
+    logical :: diverged
+    character(len=200) :: line
+
+    associate(s => this%cfg%static)
+      call log_info('iem '//iem_version//': '//itoa(this%grid%n_nodes)//' nodes, '// &
+        itoa(this%grid%n_cells)//' cells ('//itoa(this%grid%nx)//' x '//itoa(this%grid%ny)// &
+        '), '//itoa(this%n_ranks)//' ranks')
+      call log_info('static analysis by dynamic relaxation: '//itoa(s%load_steps)// &
+        ' load steps to t = '//rtoa(this%cfg%run%t_end)//', '//trim(s%method)// &
+        ' damping, '//trim(s%mass)//' masses, tolerance '//rtoa(s%tolerance)// &
+        ' (relative residual), at most '//itoa(s%max_iterations)//' iterations a step')
+    end associate
+    stat = 0
+    msg = ''
+    wall0 = MPI_Wtime()
+    this%w_ext = 0.0_wp
+    this%w_damp = 0.0_wp
+    total_iterations = 0
+    t_prev = 0.0_wp
+    do k = 0, this%n_steps
+      t = this%cfg%run%t_end*real(k, wp)/real(this%n_steps, wp)
+      wall_step = MPI_Wtime()
+      call this%relax%step(this%model, this%lat, this%halo, this%st%y, t_prev, t, res)
+      total_iterations = total_iterations + res%iterations
+      if (.not. (res%finite .and. res%converged)) then
+        stat = 3
+        if (.not. res%finite) then
+          msg = 'static load step '//itoa(k)//'/'//itoa(this%n_steps)//' (t = '//rtoa(t)// &
+                ') diverged (non-finite forces) after '//itoa(res%iterations)//' iterations'
+        else
+          msg = 'static load step '//itoa(k)//'/'//itoa(this%n_steps)//' (t = '//rtoa(t)// &
+                ', load factor '//rtoa(res%load_factor)//') did not converge in '// &
+                itoa(res%iterations)//' iterations: relative residual '// &
+                rtoa(res%residual)//' > tolerance '//rtoa(this%cfg%static%tolerance)// &
+                '; raise &static max_iterations, use more load_steps or a looser tolerance'
+        end if
+        call flush_history(this, stat2)
+        return
+      end if
+      ! nonlinear springs: the converged state is where spring history is committed
+      this%w_ext = this%w_ext + res%work
+      call record_sample(this, k, t, diverged)
+      if (diverged) then
+        stat = 3
+        msg = 'static load step '//itoa(k)//'/'//itoa(this%n_steps)//' (t = '//rtoa(t)// &
+              ') gave non-finite energies'
+        call flush_history(this, stat2)
+        return
+      end if
+      b = this%n_buf
+      this%h_load(b) = res%load_factor
+      this%h_iter(b) = res%iterations
+      this%h_res(b) = res%residual
+      call flush_history(this, stat)
+      if (stat == 0) call write_frame(this, k, t, stat)
+      if (stat /= 0) then
+        msg = 'writing output to '//trim(this%cfg%run%output_file)//' failed'
+        return
+      end if
+      write(line, '(a,i0,a,i0,a,f8.5,a,i8,a,es9.2,a,f9.2,a)') 'load step ', k, '/', &
+        this%n_steps, '  load factor ', res%load_factor, '  iterations ', res%iterations, &
+        '  residual ', res%residual, '  wall ', MPI_Wtime() - wall_step, ' s'
+      call log_info(trim(line))
+      t_prev = t
+    end do
+    call log_info('done: '//itoa(this%n_steps)//' load steps, '//itoa(total_iterations)// &
+                  ' iterations in '//rtoa(MPI_Wtime() - wall0)//' s wall; energy-balance '// &
+                  'error '//rtoa(this%last_balance))
+  end subroutine run_static
 
   subroutine report_start(this)
     type(simulation_t), intent(in) :: this

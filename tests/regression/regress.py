@@ -53,6 +53,17 @@ def with_output(src: Path, dst: Path, output_file: str) -> Path:
     return dst
 
 
+def substitute(nml: Path, subs: list[str]) -> None:
+    """Apply OLD=>NEW text substitutions to a namelist (each must match once)."""
+    text = nml.read_text()
+    for sub in subs:
+        old, new = sub.split("=>")
+        if text.count(old) != 1:
+            raise SystemExit(f"{nml}: '{old}' must occur once")
+        text = text.replace(old, new)
+    nml.write_text(text)
+
+
 def scratch(name: str) -> Path:
     """A fresh scratch folder in the current (build) directory."""
     d = Path.cwd() / "regression_work" / name
@@ -114,12 +125,15 @@ def cmd_cantilever(args: argparse.Namespace) -> None:
     2 pi / (1.8751^2 sqrt(E I / (rho A L^4))) = 19.18 ms.
     Tolerances: the paper's cell is stiff in bending on coarse grids (model.md section 8:
     about 95% of the continuum deflection with 8 cells through the depth), so the static
-    deflection must lie in [0.93, 0.97] of Timoshenko; the period must be that of a beam of
-    the same stiffness, T_EB * sqrt(ratio), within 2% (shear and rotary inertia lengthen a
-    beam with L/h = 10 by about 1%).
+    deflection must lie in [0.93, 0.97] of Timoshenko (--band); the bending-corrected cell
+    bends right on any grid: with 2 cells through the depth its band is [0.985, 1.005] (the
+    point load and the clamped face make the 2D solution differ from Timoshenko by about
+    0.5%). The period must be that of a beam of the same stiffness, T_EB * sqrt(ratio),
+    within 2% (shear and rotary inertia lengthen a beam with L/h = 10 by about 1%).
     """
-    work = scratch("cantilever")
+    work = scratch("cantilever_" + "_".join(args.band_name))
     nml = with_output(Path(args.case), work / "cantilever.nml", "cantilever.h5")
+    substitute(nml, args.sub)
     p = run_iem(args, args.ranks[0], nml, work)
     check(p.returncode == 0, f"cantilever run exits 0 (got {p.returncode})")
     if p.returncode != 0:
@@ -149,7 +163,8 @@ def cmd_cantilever(args: argparse.Namespace) -> None:
     ratio = -mean / d_timo
     print(f"static tip deflection {-mean:.5e} m, Timoshenko {d_timo:.5e} m, ratio {ratio:.4f}")
     print(f"period {period:.5e} s, Euler-Bernoulli {t_eb:.5e} s, ratio {period / t_eb:.4f}")
-    check(0.93 <= ratio <= 0.97, f"static deflection ratio {ratio:.4f} in [0.93, 0.97]")
+    lo, hi = args.band
+    check(lo <= ratio <= hi, f"static deflection ratio {ratio:.4f} in [{lo}, {hi}]")
     expect = t_eb * np.sqrt(ratio)
     check(abs(period / expect - 1) <= 0.02,
           f"period {period:.4e} s within 2% of T_EB*sqrt(ratio) = {expect:.4e} s")
@@ -182,6 +197,73 @@ def cmd_patch(args: argparse.Namespace) -> None:
     print(f"eps_x target {ex:.3e}, eps_y target {ey:.3e}; field errors {err_x:.1e}, {err_y:.1e}")
     check(err_x < 1e-3, f"u_x = eps_x x everywhere to {err_x:.1e} < 1e-3")
     check(err_y < 1e-3, f"u_y = -nu eps_x y everywhere to {err_y:.1e} < 1e-3")
+
+
+def cmd_static(args: argparse.Namespace) -> None:
+    """Quasi-static cantilever by dynamic relaxation (inputs/cantilever_static.nml): every load
+    step converges to the tolerance, the tip deflection is the lattice's static deflection,
+    the load-displacement series is linear, and all rank counts give the same answer.
+
+    Numbers: E = 25 GPa, nu = 0.2, L = 1 m, h = 0.1 m, t = 0.1 m, uniform shear traction on the
+    free end, P = 1 kN in total. Timoshenko P L^3/(3 E I) + P L/(kappa G A) = 1.61152 mm
+    (kappa = 5/6). The continuum value of this scene, from static runs of the same input with
+    80 x 8, 160 x 16, 320 x 32 and 640 x 64 cells (second-order convergence, Richardson
+    extrapolation), is 0.999 of Timoshenko; the paper's cell with 8 cells through the depth
+    gives 0.9488 of Timoshenko (0.950 of the continuum: the coarse cell's bending stiffness,
+    docs/model.md). Band: [0.94, 0.96] of Timoshenko. Ranks agree to 1e-10 relative (the
+    forces, hence the iterations, are bitwise the same on any number of ranks).
+    """
+    files = {}
+    work = scratch("static_" + Path(args.case).stem)
+    for n in args.ranks:
+        nml = with_output(Path(args.case), work / f"np{n}.nml", f"np{n}.h5")
+        p = run_iem(args, n, nml, work)
+        check(p.returncode == 0, f"static run on {n} ranks exits 0 (got {p.returncode})")
+        if p.returncode != 0:
+            print(p.stdout[-3000:], p.stderr[-3000:])
+            return
+        steps = re.findall(r"^load step (\d+)/(\d+) .* iterations +(\d+) .* wall +([0-9.]+) s",
+                           p.stdout, re.M)
+        print(f"{n} ranks: " + ", ".join(f"step {k}: {it} iterations {w} s"
+                                         for k, _, it, w in steps))
+        files[n] = h5py.File(work / f"np{n}.h5", "r")
+    f = files[args.ranks[0]]
+    st = f["history/static"]
+    n_steps = int(st.attrs["load_steps"])
+    tol = float(st.attrs["tolerance"])
+    max_it = int(st.attrs["max_iterations"])
+    check(int(f.attrs["complete"]) == 1, "output marked complete")
+    check(f.attrs["analysis"].decode() == "static", "analysis attribute is 'static'")
+    check(len(steps) == n_steps + 1, f"a progress line for each of the {n_steps + 1} load steps")
+    lf, it, res = st["load_factor"][:], st["iterations"][:], st["residual"][:]
+    check(len(lf) == len(it) == len(res) == len(f["history/time"]) == n_steps + 1,
+          f"one /history/static entry per load step and step 0 ({len(lf)})")
+    check(bool(np.all(res <= tol)), f"every step converged: residuals {res.max():.2e} <= {tol:.0e}")
+    check(bool(np.all((it >= 0) & (it < max_it)) and it[1:].min() > 0),
+          f"iterations per step {it.tolist()} within max_iterations {max_it}")
+    check(bool(np.allclose(lf, np.arange(n_steps + 1) / n_steps, rtol=0, atol=1e-14)),
+          f"load factors {lf.tolist()} follow the ramp")
+    frames = sorted(k for k in f["frames"] if k.startswith("frame_"))
+    check(len(frames) == n_steps + 1, f"one frame per load step and step 0 ({len(frames)})")
+    tip = f["history/probes/tip/displacement"][:, 1]
+    e, nu, length, h, b, force = 25e9, 0.2, 1.0, 0.1, 0.1, 1000.0
+    inertia, area, shear = b * h**3 / 12, b * h, e / (2 * (1 + nu))
+    d_timo = force * length**3 / (3 * e * inertia) + force * length / (5 / 6 * shear * area)
+    ratio = -tip[-1] / d_timo
+    print(f"tip deflection {-tip[-1]:.5e} m, Timoshenko {d_timo:.5e} m, ratio {ratio:.4f}")
+    check(0.94 <= ratio <= 0.96, f"tip deflection ratio {ratio:.4f} in [0.94, 0.96]")
+    lin = float(np.max(np.abs(tip[1:] / lf[1:] - tip[-1])) / abs(tip[-1]))
+    check(lin < 1e-3, f"load-displacement series linear to {lin:.1e} < 1e-3")
+    err = float(f["history/energy/balance_error"][:].max())
+    check(err < 1e-5, f"strain energy equals the external work to {err:.1e} < 1e-5")
+    for n in args.ranks[1:]:
+        g = files[n]
+        d = rel_diff(f[f"frames/{frames[-1]}/displacement"][:],
+                     g[f"frames/{frames[-1]}/displacement"][:])
+        check(d <= 1e-10, f"{n} ranks: final displacement field equal to {d:.1e} <= 1e-10")
+        d = rel_diff(f["history/probes/tip/displacement"][:],
+                     g["history/probes/tip/displacement"][:])
+        check(d <= 1e-10, f"{n} ranks: tip load-displacement series equal to {d:.1e} <= 1e-10")
 
 
 def cmd_input_errors(args: argparse.Namespace) -> None:
@@ -224,15 +306,20 @@ def cmd_input_errors(args: argparse.Namespace) -> None:
 def main() -> int:
     """Parse arguments and run one regression check."""
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("check", choices=["ranks", "cantilever", "patch", "input_errors"])
+    ap.add_argument("check", choices=["ranks", "cantilever", "patch", "static", "input_errors"])
     ap.add_argument("--iem", required=True, help="path of the iem executable")
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="", help="extra mpiexec flags, ';'-separated")
     ap.add_argument("--case", required=True, help="namelist (or folder of namelists)")
     ap.add_argument("--ranks", type=int, nargs="+", default=[1])
+    ap.add_argument("--sub", action="append", default=[],
+                    help="OLD=>NEW text substitution in the namelist (repeatable)")
+    ap.add_argument("--band", type=float, nargs=2, default=[0.93, 0.97],
+                    help="allowed range of static deflection / Timoshenko")
     args = ap.parse_args()
+    args.band_name = [f"{b:g}" for b in args.band]
     {"ranks": cmd_ranks, "cantilever": cmd_cantilever, "patch": cmd_patch,
-     "input_errors": cmd_input_errors}[args.check](args)
+     "static": cmd_static, "input_errors": cmd_input_errors}[args.check](args)
     if FAILURES:
         print(f"{len(FAILURES)} check(s) failed")
         return 1
