@@ -76,6 +76,9 @@ module iem_config
     character(len=12) :: kind = 'none'
     real(wp) :: alpha = 0.0_wp, beta = 0.0_wp
     real(wp) :: ratio = 0.0_wp, frequency = 0.0_wp
+    !> kind = 'capped': stiffness damping acts on the velocity low-pass filtered at this
+    !> frequency (Hz); beta is then found by the model for ratio at frequency.
+    real(wp) :: cap_frequency = 0.0_wp
   end type damping_config_t
 
   !> Quasi-static analysis by dynamic relaxation (&static; only with analysis = 'static').

@@ -451,14 +451,16 @@ contains
     character(len=12) :: kind
     real(wp) :: ratio, frequency, alpha, beta
     character(len=256) :: m
-    namelist /damping/ kind, ratio, frequency, alpha, beta
+    real(wp) :: cap_frequency
+    namelist /damping/ kind, ratio, frequency, alpha, beta, cap_frequency
     kind = 'none'; ratio = unset_real; frequency = unset_real
-    alpha = unset_real; beta = unset_real
+    alpha = unset_real; beta = unset_real; cap_frequency = unset_real
     m = ''
     read(chunk, nml=damping, iostat=ios, iomsg=m)
     iomsg = trim(m)
     cfg%damping%kind = lower(kind); cfg%damping%ratio = ratio
     cfg%damping%frequency = frequency; cfg%damping%alpha = alpha; cfg%damping%beta = beta
+    cfg%damping%cap_frequency = cap_frequency
   end subroutine parse_damping
 
   subroutine read_damping(text, g, cfg, stat, msg)
@@ -472,8 +474,8 @@ contains
     character(len=*), parameter :: label = '&damping'
     real(wp) :: omega
     logical :: by_ratio, by_coeff
-    call check_keys(text, g, [character(len=10) :: 'kind', 'ratio', 'frequency', 'alpha', &
-      'beta'], label, stat, msg)
+    call check_keys(text, g, [character(len=13) :: 'kind', 'ratio', 'frequency', 'alpha', &
+      'beta', 'cap_frequency'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_damping(chunk, cfg, stat, iomsg)
@@ -489,8 +491,17 @@ contains
       case ('none')
         if (by_ratio .or. by_coeff) call bad(label, 'kind', "'none'", &
           'takes no ratio, frequency, alpha or beta', stat, msg)
-      case ('mass', 'stiffness', 'rayleigh')
-        if (by_coeff .and. trim(d%kind) /= 'rayleigh') then
+      case ('mass', 'stiffness', 'rayleigh', 'capped')
+        if (trim(d%kind) /= 'capped' .and. d%cap_frequency /= unset_real) then
+          call bad(label, 'cap_frequency', rtoa(d%cap_frequency), &
+                   "needs kind = 'capped'", stat, msg)
+        else if (trim(d%kind) == 'capped' .and. d%cap_frequency == unset_real) then
+          call bad(label, 'cap_frequency', '(not given)', &
+                   "is required for kind = 'capped' [Hz]", stat, msg)
+        else if (trim(d%kind) == 'capped' .and. .not. (d%cap_frequency > 0.0_wp)) then
+          call bad(label, 'cap_frequency', rtoa(d%cap_frequency), 'must be > 0 [Hz]', &
+                   stat, msg)
+        else if (by_coeff .and. trim(d%kind) /= 'rayleigh') then
           call bad(label, 'kind', "'"//trim(d%kind)//"'", &
                    "is given by ratio and frequency; alpha, beta need kind = 'rayleigh'", stat, msg)
         else if (by_coeff .and. by_ratio) then
@@ -522,17 +533,21 @@ contains
             d%alpha = 0.0_wp; d%beta = 2.0_wp*d%ratio/omega
           case ('rayleigh')
             d%alpha = d%ratio*omega; d%beta = d%ratio/omega
+          case ('capped')
+            ! beta follows from ratio, frequency and cap_frequency in the model
+            d%alpha = 0.0_wp; d%beta = 0.0_wp
           end select
         end if
       case default
         call bad(label, 'kind', "'"//trim(d%kind)//"'", &
-                 "must be 'none', 'mass', 'stiffness' or 'rayleigh'", stat, msg)
+                 "must be 'none', 'mass', 'stiffness', 'rayleigh' or 'capped'", stat, msg)
       end select
       if (d%kind == 'none') then
         d%alpha = 0.0_wp; d%beta = 0.0_wp
       end if
       if (d%ratio == unset_real) d%ratio = 0.0_wp
       if (d%frequency == unset_real) d%frequency = 0.0_wp
+      if (d%cap_frequency == unset_real) d%cap_frequency = 0.0_wp
     end associate
   end subroutine read_damping
 

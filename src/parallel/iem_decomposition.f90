@@ -15,13 +15,16 @@ module iem_decomposition
 contains
 
   !> Partition the grid over the ranks of comm and build this rank's lattice and halo plan.
-  subroutine decompose(grid, comm, lat, halo, stat, msg)
+  !> The halo carries width values a node (default 4: u and v).
+  subroutine decompose(grid, comm, lat, halo, stat, msg, width)
     type(grid_t), intent(in) :: grid
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(inout) :: lat
     type(halo_t), intent(inout) :: halo
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
+    integer, intent(in), optional :: width
+    integer :: w
     integer(ip), allocatable :: part(:)
     integer :: rank, nranks
     integer(i8) :: n
@@ -45,7 +48,9 @@ contains
     n = grid%n_nodes
     call MPI_Bcast(part, int(n), mpi_ip(), 0, comm)
     call build_local(grid, part, rank, lat)
-    call build_halo(grid, part, rank, comm, lat, halo)
+    w = 4
+    if (present(width)) w = width
+    call build_halo(grid, part, rank, comm, lat, halo, w)
   end subroutine decompose
 
   !> Build the local lattice of rank `me` from the global part array.
@@ -147,13 +152,14 @@ contains
   end subroutine build_local
 
   !> Build the halo plan: whom we receive from (contiguous halo ranges) and what we send.
-  subroutine build_halo(grid, part, me, comm, lat, halo)
+  subroutine build_halo(grid, part, me, comm, lat, halo, width)
     type(grid_t), intent(in) :: grid
     integer(ip), intent(in) :: part(0:)
     integer, intent(in) :: me
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
+    integer, intent(in) :: width
     integer, allocatable :: ranks(:)
     integer(ip), allocatable :: recv_first(:), send_first(:), send_node(:), cnt(:), pos(:)
     integer :: nb, k, l, q, r, di, dj, ii, jj, nranks_seen
@@ -209,7 +215,7 @@ contains
         pos(r) = pos(r) + 1
       end do
     end do
-    call halo%init(comm, ranks, recv_first, send_first, send_node, 4)
+    call halo%init(comm, ranks, recv_first, send_first, send_node, width)
 
   contains
 

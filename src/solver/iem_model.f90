@@ -10,6 +10,8 @@ module iem_model
   use iem_cell_kernel, only: cell_forces
   use iem_time_function, only: tf_value, tf_rate
   use iem_strings, only: itoa
+  use iem_constants, only: pi
+  use iem_stable_dt, only: capped_beta
   implicit none
   private
   public :: model_t
@@ -19,6 +21,11 @@ module iem_model
     type(grid_t) :: grid
     type(cell_constants_t) :: k
     real(wp) :: density = 0.0_wp, alpha = 0.0_wp, beta = 0.0_wp
+    !> Capped stiffness damping: the stiffness damping acts on w, the velocity low-pass
+    !> filtered at omega_cap (rad/s), carried as state rows 5:6; 0 when not used.
+    real(wp) :: omega_cap = 0.0_wp
+    !> State values per node: 4 (u, v), or 6 (u, v, w) with capped damping.
+    integer :: n_state = 4
     !> Lumped mass of owned nodes and its inverse.
     real(wp), allocatable :: mass(:), inv_mass(:)
     !> Prescribed degrees of freedom: owned node, component, bc index.
@@ -64,6 +71,13 @@ contains
                             bending=cfg%geometry%cell == 'bending')
     this%alpha = cfg%damping%alpha
     this%beta = cfg%damping%beta
+    this%omega_cap = 0.0_wp
+    this%n_state = 4
+    if (cfg%damping%kind == 'capped') then
+      this%omega_cap = 2.0_wp*pi*cfg%damping%cap_frequency
+      this%beta = capped_beta(cfg%damping%ratio, 2.0_wp*pi*cfg%damping%frequency, this%omega_cap)
+      this%n_state = 6
+    end if
     mcell = 0.25_wp*this%density*grid%lx*grid%ly*grid%thickness
     allocate(this%mass(lat%n_owned))
     do l = 1, lat%n_owned
@@ -180,7 +194,7 @@ contains
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
     call cell_forces(this%k, lat%cell_nodes, lat%cell_counted, y, this%beta, this%f, &
-                     this%energy, p_damp)
+                     this%energy, p_damp, this%n_state - 1)
     ! external loads: rebuilt only when a time function has changed
     changed = .false.
     do ld = 1, size(this%load_tf)
@@ -214,6 +228,12 @@ contains
         p_ext = p_ext + r*y(2 + comp, l)
       end if
     end do
+    ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
+    if (this%omega_cap > 0.0_wp) then
+      do l = 1, lat%n_owned
+        acc(3:4, l) = this%omega_cap*(y(3:4, l) - y(5:6, l))
+      end do
+    end if
     ! damping power: stiffness-proportional from the cells, mass-proportional on owned nodes
     if (this%alpha > 0.0_wp) then
       do l = 1, lat%n_owned

@@ -10,7 +10,8 @@ module iem_rk4
   private
   public :: state_t, rk4_first_stage, rk4_finish_step
 
-  !> State vectors of one rank: y = (u_x, u_y, v_x, v_y) per local node, plus RK4 work arrays.
+  !> State vectors of one rank: y = (u_x, u_y, v_x, v_y[, w_x, w_y]) per local node (w: the
+  !> filtered velocity of capped damping), plus RK4 work arrays.
   type :: state_t
     !> State at the start of the step (owned and halo nodes).
     real(wp), allocatable :: y(:, :)
@@ -18,7 +19,7 @@ module iem_rk4
     real(wp), allocatable :: ys(:, :)
     !> Accumulated new state (owned nodes).
     real(wp), allocatable :: ynew(:, :)
-    !> Accelerations of the current stage (owned nodes).
+    !> Rates of rows 3: of the current stage (owned nodes): accelerations[, filter rates].
     real(wp), allocatable :: acc(:, :)
     !> Local power of external forces and of damping at stage 1.
     real(wp) :: p_ext1 = 0.0_wp, p_damp1 = 0.0_wp
@@ -28,13 +29,18 @@ module iem_rk4
 
 contains
 
-  !> Allocate the state for n_local nodes of which n_owned are owned; all zero.
-  subroutine state_init(this, n_owned, n_local)
+  !> Allocate the state for n_local nodes of which n_owned are owned, with n_state values a
+  !> node (default 4); all zero.
+  subroutine state_init(this, n_owned, n_local, n_state)
     class(state_t), intent(inout) :: this
     integer, intent(in) :: n_owned, n_local
+    integer, intent(in), optional :: n_state
+    integer :: ns
+    ns = 4
+    if (present(n_state)) ns = n_state
     if (allocated(this%y)) deallocate(this%y, this%ys, this%ynew, this%acc)
-    allocate(this%y(4, n_local), this%ys(4, n_local), this%ynew(4, n_owned), &
-             this%acc(2, n_owned))
+    allocate(this%y(ns, n_local), this%ys(ns, n_local), this%ynew(ns, n_owned), &
+             this%acc(ns - 2, n_owned))
     this%y = 0.0_wp
     this%ys = 0.0_wp
     this%ynew = 0.0_wp
@@ -67,18 +73,19 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     real(wp) :: p_ext, p_damp, h
-    integer :: l, n, stage
+    integer :: l, n, stage, ns
     real(wp), parameter :: weight(4) = [1.0_wp, 2.0_wp, 2.0_wp, 1.0_wp]/6.0_wp
     real(wp), parameter :: frac(4) = [0.0_wp, 0.5_wp, 0.5_wp, 1.0_wp]
 
     n = lat%n_owned
+    ns = size(st%y, 1)
     call timer_start(t_update)
     ! k1 is in st%acc (accelerations) and st%y(3:4) (velocities)
     do l = 1, n
       st%ynew(1:2, l) = st%y(1:2, l) + weight(1)*dt*st%y(3:4, l)
-      st%ynew(3:4, l) = st%y(3:4, l) + weight(1)*dt*st%acc(:, l)
+      st%ynew(3:ns, l) = st%y(3:ns, l) + weight(1)*dt*st%acc(:, l)
       st%ys(1:2, l) = st%y(1:2, l) + frac(2)*dt*st%y(3:4, l)
-      st%ys(3:4, l) = st%y(3:4, l) + frac(2)*dt*st%acc(:, l)
+      st%ys(3:ns, l) = st%y(3:ns, l) + frac(2)*dt*st%acc(:, l)
     end do
     w_ext = w_ext + weight(1)*dt*st%p_ext1
     w_damp = w_damp + weight(1)*dt*st%p_damp1
@@ -96,13 +103,13 @@ contains
       w_damp = w_damp + weight(stage)*dt*p_damp
       do l = 1, n
         st%ynew(1:2, l) = st%ynew(1:2, l) + weight(stage)*dt*st%ys(3:4, l)
-        st%ynew(3:4, l) = st%ynew(3:4, l) + weight(stage)*dt*st%acc(:, l)
+        st%ynew(3:ns, l) = st%ynew(3:ns, l) + weight(stage)*dt*st%acc(:, l)
       end do
       if (stage < 4) then
         h = frac(stage + 1)*dt
         do l = 1, n
           st%ys(1:2, l) = st%y(1:2, l) + h*st%ys(3:4, l)
-          st%ys(3:4, l) = st%y(3:4, l) + h*st%acc(:, l)
+          st%ys(3:ns, l) = st%y(3:ns, l) + h*st%acc(:, l)
         end do
       end if
     end do

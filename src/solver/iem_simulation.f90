@@ -17,6 +17,7 @@ module iem_simulation
   use iem_relaxation, only: relaxation_t, relax_result_t, relax_check_interval
   use iem_h5_output, only: h5_output_t
   use iem_build_info, only: iem_version
+  use iem_constants, only: rk4_imag_limit
   use iem_logger, only: log_info, log_warn
   use iem_timers, only: timer_start, timer_stop, timer_total, timer_names, n_timers, t_output, &
                         peak_rss_bytes
@@ -75,7 +76,7 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer(i8), allocatable :: n_selected(:)
-    integer :: k, np, nb
+    integer :: k, np, nb, n_state
     real(wp) :: m_corner
 
     this%cfg = cfg
@@ -95,7 +96,10 @@ contains
 
     ! time step: cell-level bound of omega_max, damping included
     m_corner = 0.25_wp*cfg%material%density*this%grid%lx*this%grid%ly*this%grid%thickness
-    call decompose(this%grid, comm, this%lat, this%halo, stat, msg)
+    ! capped damping carries the filtered velocity as two more state values a node
+    n_state = 4
+    if (this%cfg%damping%kind == 'capped') n_state = 6
+    call decompose(this%grid, comm, this%lat, this%halo, stat, msg, n_state)
     if (stat /= 0) return
     nb = size(cfg%bcs)
     allocate(n_selected(nb + size(cfg%loads)))
@@ -122,7 +126,8 @@ contains
       this%n_steps = cfg%static%load_steps
       this%dt = cfg%run%t_end/real(this%n_steps, wp)
     else
-      this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta)
+      this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
+                                    this%model%omega_cap)
       if (cfg%run%dt > 0.0_wp) then
         if (cfg%run%dt > this%dt_limit) then
           stat = 1
@@ -149,7 +154,7 @@ contains
       this%probe_local(k) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k), 1)
     end do
 
-    call this%st%init(this%lat%n_owned, this%lat%n_local)
+    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state)
     call this%model%prescribe(this%st%y, 0.0_wp)
     allocate(this%h_time(history_chunk), this%h_step(history_chunk))
     allocate(this%h_energy(n_energy, history_chunk))
@@ -501,6 +506,10 @@ contains
     if (this%model%alpha > 0.0_wp .or. this%model%beta > 0.0_wp) then
       call log_info('Rayleigh damping: alpha = '//rtoa(this%model%alpha)//' 1/s, beta = '// &
                     rtoa(this%model%beta)//' s')
+      if (this%model%omega_cap > 0.0_wp) call log_info('stiffness damping acts on the '// &
+        'velocity filtered at '//rtoa(this%cfg%damping%cap_frequency)//' Hz (capped)')
+      call log_info('damped stable step '//rtoa(this%dt_limit)//' s = '// &
+        rtoa(this%dt_limit*this%omega_max/rk4_imag_limit)//' of the undamped one')
     end if
   end subroutine report_start
 

@@ -8,6 +8,7 @@ module iem_stable_dt
   implicit none
   private
   public :: cell_stiffness, cell_omega_max, rk4_stable_dt, rk4_amplification, jacobi_eigenvalues
+  public :: modal_damping_ratio, capped_beta, cubic_roots
 
 contains
 
@@ -40,29 +41,101 @@ contains
     w = sqrt(max(maxval(ev), 0.0_wp))
   end function cell_omega_max
 
-  !> Largest dt for which RK4 is stable for every mode omega in [0, omega_max] under Rayleigh
-  !> damping c(omega) = alpha + beta*omega^2 (2*sqrt(2)/omega_max when undamped).
-  pure real(wp) function rk4_stable_dt(omega_max, alpha, beta) result(dt)
+  !> Largest dt for which RK4 is stable for every mode omega in [0, omega_max] under the
+  !> damping alpha*M*v + beta*K*w, where w = v, or, with omega_cap > 0, w is v low-pass
+  !> filtered at omega_cap (dw/dt = omega_cap (v - w)); 2*sqrt(2)/omega_max when undamped.
+  pure real(wp) function rk4_stable_dt(omega_max, alpha, beta, omega_cap) result(dt)
     real(wp), intent(in) :: omega_max, alpha, beta
+    real(wp), intent(in), optional :: omega_cap
     integer, parameter :: n_samples = 400
-    integer :: s
-    real(wp) :: w, c, dtw
-    complex(wp) :: lam(2), disc
+    integer :: s, j
+    real(wp) :: w, wc
+    complex(wp) :: lam(3)
+    wc = 0.0_wp
+    if (present(omega_cap)) wc = omega_cap
     if (alpha == 0.0_wp .and. beta == 0.0_wp) then
       dt = rk4_imag_limit/omega_max
       return
     end if
     dt = huge(1.0_wp)
+    if (wc > 0.0_wp) dt = ray_limit(cmplx(-wc, 0.0_wp, wp))
     do s = 0, n_samples
       w = omega_max*real(s, wp)/n_samples
-      c = alpha + beta*w**2
-      disc = sqrt(cmplx(c**2 - 4.0_wp*w**2, 0.0_wp, wp))
-      lam(1) = 0.5_wp*(-c + disc)
-      lam(2) = 0.5_wp*(-c - disc)
-      dtw = min(ray_limit(lam(1)), ray_limit(lam(2)))
-      dt = min(dt, dtw)
+      lam = mode_roots(w, alpha, beta, wc)
+      do j = 1, 3
+        dt = min(dt, ray_limit(lam(j)))
+      end do
     end do
   end function rk4_stable_dt
+
+  !> Eigenvalues of one mode of frequency w under the damping of rk4_stable_dt: the roots of
+  !> l^2 + (alpha + beta w^2) l + w^2 (undamped filter, third root 0), or with the filter the
+  !> roots of l^3 + (alpha + wc) l^2 + (w^2 (1 + beta wc) + alpha wc) l + w^2 wc.
+  pure function mode_roots(w, alpha, beta, wc) result(lam)
+    real(wp), intent(in) :: w, alpha, beta, wc
+    complex(wp) :: lam(3), disc
+    real(wp) :: c
+    if (wc > 0.0_wp) then
+      lam = cubic_roots(alpha + wc, w**2*(1.0_wp + beta*wc) + alpha*wc, w**2*wc)
+    else
+      c = alpha + beta*w**2
+      disc = sqrt(cmplx(c**2 - 4.0_wp*w**2, 0.0_wp, wp))
+      lam = [0.5_wp*(-c + disc), 0.5_wp*(-c - disc), (0.0_wp, 0.0_wp)]
+    end if
+  end function mode_roots
+
+  !> Damping ratio -Re(l)/|l| of the oscillatory (most weakly damped complex) root of a mode of
+  !> frequency w under the damping of rk4_stable_dt.
+  pure real(wp) function modal_damping_ratio(w, alpha, beta, wc) result(z)
+    real(wp), intent(in) :: w, alpha, beta, wc
+    complex(wp) :: lam(3)
+    integer :: j
+    lam = mode_roots(w, alpha, beta, wc)
+    z = 1.0_wp
+    do j = 1, 3
+      if (abs(aimag(lam(j))) > 1.0e-12_wp*abs(lam(j))) z = min(z, -real(lam(j))/abs(lam(j)))
+    end do
+  end function modal_damping_ratio
+
+  !> The beta that gives the damping ratio z at frequency w with the filter at wc > 0
+  !> (first-order estimate 2 z (wc^2 + w^2) / (w wc^2), refined by bisection on the exact
+  !> modal ratio).
+  pure real(wp) function capped_beta(z, w, wc) result(beta)
+    real(wp), intent(in) :: z, w, wc
+    real(wp) :: lo, hi
+    integer :: it
+    beta = 2.0_wp*z*(wc**2 + w**2)/(w*wc**2)
+    lo = 0.0_wp
+    hi = 4.0_wp*beta
+    do it = 1, 200
+      beta = 0.5_wp*(lo + hi)
+      if (modal_damping_ratio(w, 0.0_wp, beta, wc) > z) then
+        hi = beta
+      else
+        lo = beta
+      end if
+    end do
+  end function capped_beta
+
+  !> Roots of the monic cubic x^3 + a2 x^2 + a1 x + a0 (Durand-Kerner iteration).
+  pure function cubic_roots(a2, a1, a0) result(x)
+    real(wp), intent(in) :: a2, a1, a0
+    complex(wp) :: x(3), p, q
+    real(wp) :: radius
+    integer :: it, i, j
+    radius = 1.0_wp + max(abs(a2), abs(a1)**(1.0_wp/2.0_wp), abs(a0)**(1.0_wp/3.0_wp))
+    x = radius*[(0.4_wp, 0.9_wp), (-0.7_wp, 0.3_wp), (0.2_wp, -0.8_wp)]
+    do it = 1, 500
+      do i = 1, 3
+        p = ((x(i) + a2)*x(i) + a1)*x(i) + a0
+        q = (1.0_wp, 0.0_wp)
+        do j = 1, 3
+          if (j /= i) q = q*(x(i) - x(j))
+        end do
+        if (abs(q) > 0.0_wp) x(i) = x(i) - p/q
+      end do
+    end do
+  end function cubic_roots
 
   !> RK4 amplification factor R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24.
   pure complex(wp) function rk4_amplification(z) result(r)

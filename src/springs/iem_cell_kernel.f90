@@ -49,21 +49,30 @@ contains
   !> the order of cell_nodes' columns, so the same cells in the same order give bitwise the same
   !> forces whatever else the list holds. Cells go in chunks whose corner values are first
   !> gathered into small unit-stride arrays, so the compiler vectorises the kernel.
-  pure subroutine cell_forces(k, cell_nodes, counted, y, beta, f, energy, damp_power)
+  !> The stiffness damping acts on the velocities in rows damp_row:damp_row+1 of y (default 3,
+  !> the velocities themselves; 5 for the filtered velocities of capped damping); the damping
+  !> power is always taken with the velocities (rows 3:4).
+  pure subroutine cell_forces(k, cell_nodes, counted, y, beta, f, energy, damp_power, damp_row)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: cell_nodes(:, :)
     logical, intent(in) :: counted(:)
     real(wp), intent(in) :: y(:, :), beta
     real(wp), intent(out) :: f(:, :), energy, damp_power
-    real(wp) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4)
+    integer, intent(in), optional :: damp_row
+    real(wp) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4), px(chunk, 4), py(chunk, 4)
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
-    integer :: c0, m, c, q, nc, node
-    logical :: damped
+    integer :: c0, m, c, q, nc, node, row
+    logical :: damped, filtered
 
     nc = size(cell_nodes, 2)
     damped = beta > 0.0_wp
+    row = 3
+    if (present(damp_row)) row = damp_row
+    filtered = damped .and. row /= 3
     vx = 0.0_wp
     vy = 0.0_wp
+    px = 0.0_wp
+    py = 0.0_wp
     f = 0.0_wp
     energy = 0.0_wp
     damp_power = 0.0_wp
@@ -78,12 +87,20 @@ contains
       if (damped) then
         do q = 1, 4
           do c = 1, m
-            vx(c, q) = y(3, cell_nodes(q, c0 + c - 1))
-            vy(c, q) = y(4, cell_nodes(q, c0 + c - 1))
+            vx(c, q) = y(row, cell_nodes(q, c0 + c - 1))
+            vy(c, q) = y(row + 1, cell_nodes(q, c0 + c - 1))
           end do
         end do
       end if
-      call chunk_forces(k, m, damped, beta, ux, uy, vx, vy, fx, fy, en, pw)
+      if (filtered) then
+        do q = 1, 4
+          do c = 1, m
+            px(c, q) = y(3, cell_nodes(q, c0 + c - 1))
+            py(c, q) = y(4, cell_nodes(q, c0 + c - 1))
+          end do
+        end do
+      end if
+      call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, pw)
       do c = 1, m
         do q = 1, 4
           node = cell_nodes(q, c0 + c - 1)
@@ -101,12 +118,14 @@ contains
   !> Kernel over one chunk of m cells with corner values in unit-stride arrays (cell index
   !> first), as branch-free loops the compiler vectorises: geometry and strain measures; the
   !> cell law; damping (only when damped); corner forces.
-  pure subroutine chunk_forces(k, m, damped, beta, ux, uy, vx, vy, fx, fy, en, pw)
+  pure subroutine chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, &
+                               en, pw)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
-    logical, intent(in) :: damped
+    logical, intent(in) :: damped, filtered
     real(wp), intent(in) :: beta
     real(wp), intent(in) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4)
+    real(wp), intent(in) :: px(chunk, 4), py(chunk, 4)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
     ! per cell: unit edge vectors e, shear gradients a (d s/d a) and b (d s/d b), strains ep
     ! and shear measures s, generalised stresses g (edges) and t (corners), and the rates
@@ -114,7 +133,7 @@ contains
     real(wp) :: bx(chunk, 4), by(chunk, 4), ep(chunk, 4), s(chunk, 4), g(chunk, 4), t(chunk, 4)
     real(wp) :: d(chunk, 4), r(chunk, 4), gd(chunk, 4), td(chunk, 4)
     real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, l1, l2, l3, l4, i1, i2, i3, i4
-    real(wp) :: s1, s2, s3, s4, w1x, w1y, w2x, w2y, w3x, w3y, w4x, w4y, ilx, ily
+    real(wp) :: s1, s2, s3, s4, ilx, ily
     integer :: c
 
     ilx = k%il0(1)
@@ -166,24 +185,11 @@ contains
       pw(c) = 0.0_wp
     end do
     if (damped) then
-      do c = 1, m
-        ! strain rates from the corner velocity differences along the edges
-        w1x = vx(c, 2) - vx(c, 1)
-        w1y = vy(c, 2) - vy(c, 1)
-        w2x = vx(c, 3) - vx(c, 2)
-        w2y = vy(c, 3) - vy(c, 2)
-        w3x = vx(c, 4) - vx(c, 3)
-        w3y = vy(c, 4) - vy(c, 3)
-        w4x = vx(c, 1) - vx(c, 4)
-        w4y = vy(c, 1) - vy(c, 4)
-        d(c, :) = [(ex(c, 1)*w1x + ey(c, 1)*w1y)*ilx, (ex(c, 2)*w2x + ey(c, 2)*w2y)*ily, &
-                   (ex(c, 3)*w3x + ey(c, 3)*w3y)*ilx, (ex(c, 4)*w4x + ey(c, 4)*w4y)*ily]
-        r(c, :) = [ax(c, 1)*w1x + ay(c, 1)*w1y - bx(c, 1)*w4x - by(c, 1)*w4y, &
-                   ax(c, 2)*w2x + ay(c, 2)*w2y - bx(c, 2)*w1x - by(c, 2)*w1y, &
-                   ax(c, 3)*w3x + ay(c, 3)*w3y - bx(c, 3)*w2x - by(c, 3)*w2y, &
-                   ax(c, 4)*w4x + ay(c, 4)*w4y - bx(c, 4)*w3x - by(c, 4)*w3y]
-      end do
+      call strain_rates(vx, vy, d, r)
       call cell_law(k, m, d, r, gd, td)
+      ! the damping power is f_damp . v: with filtered damping velocities, the strain rates of
+      ! the velocities themselves are needed too
+      if (filtered) call strain_rates(px, py, d, r)
       do c = 1, m
         pw(c) = beta*sum(gd(c, :)*d(c, :) + td(c, :)*r(c, :))
         g(c, :) = g(c, :) + beta*gd(c, :)
@@ -211,6 +217,31 @@ contains
       fy(c, 4) = -g(c, 4)*ey(c, 4) - t(c, 4)*(ay(c, 4) + by(c, 4)) + g(c, 3)*ey(c, 3) &
                  + t(c, 3)*ay(c, 3) + t(c, 1)*by(c, 1)
     end do
+  contains
+
+    !> Edge strain rates d and shear rates r of the chunk's cells for corner velocities.
+    pure subroutine strain_rates(wx, wy, d_, r_)
+      real(wp), intent(in) :: wx(chunk, 4), wy(chunk, 4)
+      real(wp), intent(out) :: d_(chunk, 4), r_(chunk, 4)
+      real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y
+      integer :: i
+      do i = 1, m
+        q1x = wx(i, 2) - wx(i, 1)
+        q1y = wy(i, 2) - wy(i, 1)
+        q2x = wx(i, 3) - wx(i, 2)
+        q2y = wy(i, 3) - wy(i, 2)
+        q3x = wx(i, 4) - wx(i, 3)
+        q3y = wy(i, 4) - wy(i, 3)
+        q4x = wx(i, 1) - wx(i, 4)
+        q4y = wy(i, 1) - wy(i, 4)
+        d_(i, :) = [(ex(i, 1)*q1x + ey(i, 1)*q1y)*ilx, (ex(i, 2)*q2x + ey(i, 2)*q2y)*ily, &
+                    (ex(i, 3)*q3x + ey(i, 3)*q3y)*ilx, (ex(i, 4)*q4x + ey(i, 4)*q4y)*ily]
+        r_(i, :) = [ax(i, 1)*q1x + ay(i, 1)*q1y - bx(i, 1)*q4x - by(i, 1)*q4y, &
+                    ax(i, 2)*q2x + ay(i, 2)*q2y - bx(i, 2)*q1x - by(i, 2)*q1y, &
+                    ax(i, 3)*q3x + ay(i, 3)*q3y - bx(i, 3)*q2x - by(i, 3)*q2y, &
+                    ax(i, 4)*q4x + ay(i, 4)*q4y - bx(i, 4)*q3x - by(i, 4)*q3y]
+      end do
+    end subroutine strain_rates
   end subroutine chunk_forces
 
   !> The elastic cell law on a chunk: generalised stresses g = dPi/d eps (edges) and
