@@ -59,31 +59,30 @@ contains
     integer(ip), intent(in) :: part(0:)
     integer, intent(in) :: me
     type(local_lattice_t), intent(inout) :: lat
-    integer(ip), allocatable :: g2l(:), c2l(:)
-    integer(i8), allocatable :: keys(:)
+    integer(ip), allocatable :: g2l(:)
+    integer(i8), allocatable :: keys(:), cell_gid(:)
     integer(i8) :: g, c, corners(4), nn
-    integer :: n_owned, n_cells, n_halo, k, q, l, i, j
-    integer :: nbr(4), slot(4), ci(4), cj(4)
+    integer :: n_owned, n_cells, n_halo, k, q, l
 
     call lat%free()
+    lat%nx = grid%nx
+    lat%ny = grid%ny
     nn = grid%n_nodes
     allocate(g2l(0:nn - 1), source=0_ip)
-    allocate(c2l(0:grid%n_cells - 1), source=0_ip)
     n_owned = count(part == me)
-    ! cells touching an owned node
+    ! cells touching an owned node, ascending
     n_cells = 0
     do c = 0, grid%n_cells - 1
       corners = grid%cell_corners(c)
       if (any(part(corners) == me)) n_cells = n_cells + 1
     end do
-    allocate(lat%cell_gid(n_cells), lat%cell_nodes(4, n_cells), lat%cell_counted(n_cells))
+    allocate(cell_gid(n_cells), lat%cell_nodes(4, n_cells))
     k = 0
     do c = 0, grid%n_cells - 1
       corners = grid%cell_corners(c)
       if (any(part(corners) == me)) then
         k = k + 1
-        lat%cell_gid(k) = c
-        c2l(c) = int(k, ip)
+        cell_gid(k) = c
       end if
     end do
     ! owned nodes ascending, then halo nodes sorted by (owner, global index)
@@ -95,23 +94,33 @@ contains
       end if
     end do
     n_halo = 0
-    allocate(keys(4*n_cells))
     do k = 1, n_cells
-      corners = grid%cell_corners(lat%cell_gid(k))
+      corners = grid%cell_corners(cell_gid(k))
+      do q = 1, 4
+        if (g2l(corners(q)) == 0) then
+          g2l(corners(q)) = -1
+          n_halo = n_halo + 1
+        end if
+      end do
+    end do
+    allocate(keys(n_halo))
+    n_halo = 0
+    do k = 1, n_cells
+      corners = grid%cell_corners(cell_gid(k))
       do q = 1, 4
         g = corners(q)
-        if (g2l(g) == 0) then
-          g2l(g) = -1
+        if (g2l(g) == -1) then
+          g2l(g) = -2
           n_halo = n_halo + 1
           keys(n_halo) = int(part(g), i8)*nn + g
         end if
       end do
     end do
-    call sort_i8(keys(1:n_halo))
+    call sort_i8(keys)
     lat%n_owned = n_owned
     lat%n_local = n_owned + n_halo
     lat%n_cells = n_cells
-    allocate(lat%gid(lat%n_local), lat%ij(2, lat%n_local))
+    allocate(lat%gid(lat%n_local))
     l = 0
     do g = 0, nn - 1
       if (part(g) == me) then
@@ -124,30 +133,8 @@ contains
       lat%gid(n_owned + k) = g
       g2l(g) = int(n_owned + k, ip)
     end do
-    do l = 1, lat%n_local
-      lat%ij(:, l) = grid%node_ij(lat%gid(l))
-    end do
     do k = 1, n_cells
-      corners = grid%cell_corners(lat%cell_gid(k))
-      lat%cell_nodes(:, k) = g2l(corners)
-      lat%cell_counted(k) = part(corners(1)) == me
-    end do
-    ! gather table: SW cell (corner 3), SE (corner 4), NW (corner 2), NE (corner 1)
-    allocate(lat%node_cells(4, n_owned))
-    ci = [-1, 0, -1, 0]
-    cj = [-1, -1, 0, 0]
-    slot = [3, 4, 2, 1]
-    do l = 1, n_owned
-      i = lat%ij(1, l)
-      j = lat%ij(2, l)
-      do q = 1, 4
-        nbr(q) = 0
-        if (i + ci(q) < 0 .or. i + ci(q) >= grid%nx) cycle
-        if (j + cj(q) < 0 .or. j + cj(q) >= grid%ny) cycle
-        c = int(i + ci(q), i8) + int(j + cj(q), i8)*grid%nx
-        nbr(q) = 4*(c2l(c) - 1) + slot(q)
-      end do
-      lat%node_cells(:, l) = nbr
+      lat%cell_nodes(:, k) = g2l(grid%cell_corners(cell_gid(k)))
     end do
   end subroutine build_local
 
@@ -223,12 +210,13 @@ contains
     subroutine ranks_needing(l_, need_, n_)
       integer, intent(in) :: l_
       integer, intent(out) :: need_(9), n_
-      integer :: o
+      integer :: o, ij(2)
       n_ = 0
+      ij = lat%node_ij(l_)
       do dj = -1, 1
         do di = -1, 1
-          ii = lat%ij(1, l_) + di
-          jj = lat%ij(2, l_) + dj
+          ii = ij(1) + di
+          jj = ij(2) + dj
           if (ii < 0 .or. ii > grid%nx .or. jj < 0 .or. jj > grid%ny) cycle
           o = part(grid%node_id(ii, jj))
           if (o == me) cycle

@@ -26,8 +26,8 @@ module iem_model
     real(wp) :: omega_cap = 0.0_wp
     !> State values per node: 4 (u, v), or 6 (u, v, w) with capped damping.
     integer :: n_state = 4
-    !> Lumped mass of owned nodes and its inverse.
-    real(wp), allocatable :: mass(:), inv_mass(:)
+    !> Lumped mass of owned nodes.
+    real(wp), allocatable :: mass(:)
     !> Prescribed degrees of freedom: owned node, component, bc index.
     integer, allocatable :: bc_node(:), bc_comp(:), bc_id(:)
     real(wp), allocatable :: bc_velocity(:, :)
@@ -41,8 +41,6 @@ module iem_model
     real(wp), allocatable :: f(:, :), fext(:, :)
     !> Strain energy of the counted cells at the last rate evaluation.
     real(wp) :: energy = 0.0_wp
-    !> Free dofs mask (owned nodes): 1 free, 0 prescribed.
-    real(wp), allocatable :: free(:, :)
   contains
     procedure :: init => model_init
     procedure :: rate => model_rate
@@ -62,6 +60,8 @@ contains
     type(local_lattice_t), intent(in) :: lat
     integer(i8), intent(out) :: n_selected(:)
     integer :: l, q, b, n, c, ld
+    integer, allocatable :: ij(:, :)
+    logical, allocatable :: taken(:, :)
     real(wp) :: mcell, w
 
     this%grid = grid
@@ -81,11 +81,15 @@ contains
     mcell = 0.25_wp*this%density*grid%lx*grid%ly*grid%thickness
     allocate(this%mass(lat%n_owned))
     do l = 1, lat%n_owned
-      this%mass(l) = mcell*count(lat%node_cells(:, l) > 0)
+      this%mass(l) = mcell*count(lat%node_corners(l) > 0)
     end do
-    this%inv_mass = 1.0_wp/this%mass
+    ! grid indices of the owned nodes, for selecting node sets
+    allocate(ij(2, lat%n_owned))
+    do l = 1, lat%n_owned
+      ij(:, l) = lat%node_ij(l)
+    end do
     allocate(this%f(2, lat%n_local))
-    allocate(this%fext(2, lat%n_owned), this%free(2, lat%n_owned))
+    allocate(this%fext(2, lat%n_owned), taken(2, lat%n_owned))
     this%f = 0.0_wp
     this%fext = 0.0_wp
     n_selected = 0
@@ -94,7 +98,7 @@ contains
     n = 0
     do b = 1, size(cfg%bcs)
       do l = 1, lat%n_owned
-        if (in_node_set(cfg%bcs(b)%set, grid, lat%ij(1, l), lat%ij(2, l))) then
+        if (in_node_set(cfg%bcs(b)%set, grid, ij(1, l), ij(2, l))) then
           n_selected(b) = n_selected(b) + 1
           n = n + count(cfg%bcs(b)%dof)
         end if
@@ -102,17 +106,17 @@ contains
     end do
     allocate(this%bc_node(n), this%bc_comp(n), this%bc_id(n))
     allocate(this%bc_velocity(2, size(cfg%bcs)), this%bc_tf(size(cfg%bcs)))
-    this%free = 1.0_wp
+    taken = .false.
     n = 0
     do b = 1, size(cfg%bcs)
       this%bc_velocity(:, b) = 0.0_wp
       if (cfg%bcs(b)%kind == 'velocity') this%bc_velocity(:, b) = cfg%bcs(b)%velocity
       this%bc_tf(b) = cfg%bcs(b)%tf
       do l = 1, lat%n_owned
-        if (.not. in_node_set(cfg%bcs(b)%set, grid, lat%ij(1, l), lat%ij(2, l))) cycle
+        if (.not. in_node_set(cfg%bcs(b)%set, grid, ij(1, l), ij(2, l))) cycle
         do c = 1, 2
           if (.not. cfg%bcs(b)%dof(c)) cycle
-          if (this%free(c, l) == 0.0_wp) then
+          if (taken(c, l)) then
             do q = 1, n
               if (this%bc_node(q) == l .and. this%bc_comp(q) == c) this%bc_id(q) = b
             end do
@@ -121,7 +125,7 @@ contains
             this%bc_node(n) = l
             this%bc_comp(n) = c
             this%bc_id(n) = b
-            this%free(c, l) = 0.0_wp
+            taken(c, l) = .true.
           end if
         end do
       end do
@@ -134,7 +138,7 @@ contains
     n = 0
     do ld = 1, size(cfg%loads)
       do l = 1, lat%n_owned
-        if (in_node_set(cfg%loads(ld)%set, grid, lat%ij(1, l), lat%ij(2, l))) then
+        if (in_node_set(cfg%loads(ld)%set, grid, ij(1, l), ij(2, l))) then
           n_selected(size(cfg%bcs) + ld) = n_selected(size(cfg%bcs) + ld) + 1
           n = n + 1
         end if
@@ -147,7 +151,7 @@ contains
     do ld = 1, size(cfg%loads)
       this%load_tf(ld) = cfg%loads(ld)%tf
       do l = 1, lat%n_owned
-        if (.not. in_node_set(cfg%loads(ld)%set, grid, lat%ij(1, l), lat%ij(2, l))) cycle
+        if (.not. in_node_set(cfg%loads(ld)%set, grid, ij(1, l), ij(2, l))) cycle
         n = n + 1
         this%load_node(n) = l
         this%load_id(n) = ld
@@ -155,7 +159,7 @@ contains
         case ('nodal')
           this%load_force(:, n) = cfg%loads(ld)%value
         case ('edge')
-          w = edge_weight(cfg%loads(ld)%set%where, grid, lat%ij(1, l), lat%ij(2, l))
+          w = edge_weight(cfg%loads(ld)%set%where, grid, ij(1, l), ij(2, l))
           this%load_force(:, n) = cfg%loads(ld)%value*w*grid%thickness
         case ('gravity')
           this%load_force(:, n) = cfg%loads(ld)%value*this%mass(l)
@@ -193,7 +197,7 @@ contains
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
-    call cell_forces(this%k, lat%cell_nodes, lat%cell_counted, y, this%beta, this%f, &
+    call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
                      this%energy, p_damp, this%n_state - 1)
     ! external loads: rebuilt only when a time function has changed
     changed = .false.
@@ -213,7 +217,7 @@ contains
     p_ext = 0.0_wp
     do l = 1, lat%n_owned
       f = this%f(:, l) + this%alpha*this%mass(l)*y(3:4, l)
-      acc(:, l) = (this%fext(:, l) - f)*this%inv_mass(l)*this%free(:, l)
+      acc(1:2, l) = (this%fext(:, l) - f)/this%mass(l)
       p_ext = p_ext + this%fext(1, l)*y(3, l) + this%fext(2, l)*y(4, l)
     end do
     ! prescribed dofs: imposed acceleration; the support reaction does work

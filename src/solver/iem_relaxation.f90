@@ -60,6 +60,8 @@ module iem_relaxation
     real(wp) :: dt = 1.0_wp
     !> Highest frequency bound (rad/s) of the lumped-mass lattice (for the log).
     real(wp) :: omega_max = 0.0_wp
+    !> Free dofs mask of the owned nodes: 1 free, 0 prescribed.
+    real(wp), allocatable :: free_dof(:, :)
     !> Position update per unit acceleration, c = dt^2 m / m_f on free dofs (0 prescribed).
     real(wp), allocatable :: c(:, :)
     !> Fictitious mass over dt^2 of the free dofs (0 prescribed): kinetic energy weights.
@@ -105,7 +107,7 @@ contains
     real(wp), intent(in) :: path_length
     real(wp) :: kc(8, 8), rowsum(2, 4), m_corner, stiff(2)
     real(wp), allocatable :: fref(:, :)
-    integer :: l, q, s, comp, corner, n, ld
+    integer :: l, q, comp, corner, n, ld, corners(4)
 
     call this%free()
     n = lat%n_owned
@@ -114,6 +116,11 @@ contains
     this%max_iterations = settings%max_iterations
     this%tolerance = settings%tolerance
     this%path_length = path_length
+    allocate(this%free_dof(2, n))
+    this%free_dof = 1.0_wp
+    do q = 1, size(model%bc_node)
+      this%free_dof(model%bc_comp(q), model%bc_node(q)) = 0.0_wp
+    end do
     allocate(this%c(2, n), this%mk(2, n), this%w(2, n), this%acc(2, n), this%u_conv(2, n), &
              this%du_conv(2, n), this%du_p(2, n), this%du_p_prev(2, n), this%u0(2, n), &
              this%acc0(2, n), this%yw(4, lat%n_local))
@@ -143,9 +150,9 @@ contains
       this%dt = 1.0_wp
       do l = 1, n
         stiff = 0.0_wp
+        corners = lat%node_corners(l)
         do q = 1, 4
-          s = lat%node_cells(q, l)
-          if (s > 0) stiff = stiff + rowsum(:, mod(s - 1, 4) + 1)
+          if (corners(q) > 0) stiff = stiff + rowsum(:, corners(q))
         end do
         this%mk(:, l) = stiff/(2.0_wp*relax_step_safety)**2
       end do
@@ -157,9 +164,9 @@ contains
       end do
     end if
     do l = 1, n
-      this%mk(:, l) = this%mk(:, l)*model%free(:, l)
+      this%mk(:, l) = this%mk(:, l)*this%free_dof(:, l)
       this%c(:, l) = 0.0_wp
-      where (model%free(:, l) > 0.0_wp) this%c(:, l) = model%mass(l)/this%mk(:, l)
+      where (this%free_dof(:, l) > 0.0_wp) this%c(:, l) = model%mass(l)/this%mk(:, l)
     end do
 
     ! Load level: the projection of the loads at time t on all loads at full scale.
@@ -167,14 +174,14 @@ contains
     fref = 0.0_wp
     do q = 1, size(model%load_node)
       l = model%load_node(q)
-      fref(:, l) = fref(:, l) + model%load_force(:, q)*model%free(:, l)
+      fref(:, l) = fref(:, l) + model%load_force(:, q)*this%free_dof(:, l)
     end do
     this%load_weight = 0.0_wp
     do q = 1, size(model%load_node)
       l = model%load_node(q)
       ld = model%load_id(q)
       this%load_weight(ld) = this%load_weight(ld) + &
-                             dot_product(model%load_force(:, q)*model%free(:, l), fref(:, l))
+                             dot_product(model%load_force(:, q)*this%free_dof(:, l), fref(:, l))
     end do
     if (size(this%load_weight) > 0) then
       call MPI_Allreduce(MPI_IN_PLACE, this%load_weight, size(this%load_weight), mpi_wp(), &
@@ -239,7 +246,7 @@ contains
     call model%prescribe(this%yw, 0.5_wp*(t_prev + t))
     do l = 1, n
       this%u_conv(:, l) = y(1:2, l)
-      this%du_p(:, l) = (t - t_prev)*this%yw(3:4, l)*(1.0_wp - model%free(:, l))
+      this%du_p(:, l) = (t - t_prev)*this%yw(3:4, l)*(1.0_wp - this%free_dof(:, l))
       y(1:2, l) = y(1:2, l) + this%du_p(:, l)
     end do
     y(3:4, :) = 0.0_wp
@@ -250,8 +257,8 @@ contains
     call model%rate(lat, y, t, this%acc, p_ext, p_damp)
     sums = 0.0_wp
     do l = 1, n
-      sums(1) = sums(1) + sum((model%fext(:, l)*model%free(:, l))**2)
-      sums(2) = sums(2) + sum((this%acc(:, l)*model%mass(l)*model%free(:, l))**2)
+      sums(1) = sums(1) + sum((model%fext(:, l)*this%free_dof(:, l))**2)
+      sums(2) = sums(2) + sum((this%acc(:, l)*model%mass(l)*this%free_dof(:, l))**2)
       sums(3) = sums(3) + dot_product(this%du_p(:, l), this%du_p_prev(:, l))
       sums(4) = sums(4) + sum(this%du_p_prev(:, l)**2)
       sums(5) = sums(5) + sum(this%du_p(:, l)**2)
@@ -292,7 +299,7 @@ contains
     need_eval = .false.
     if (s /= 0.0_wp) then
       do l = 1, n
-        y(1:2, l) = y(1:2, l) + s*this%du_conv(:, l)*model%free(:, l)
+        y(1:2, l) = y(1:2, l) + s*this%du_conv(:, l)*this%free_dof(:, l)
       end do
       need_eval = .true.
     end if
@@ -300,6 +307,7 @@ contains
     ! Relaxation: central differences in the scaled system (unit step), w = position update.
     res%converged = .false.
     this%w = 0.0_wp
+    ke = 0.0_wp
     ke_old = 0.0_wp
     half = .true.
     do l = 1, n
@@ -336,7 +344,7 @@ contains
       if (check) then
         sums = 0.0_wp
         do l = 1, n
-          sums(1) = sums(1) + sum((this%acc(:, l)*model%mass(l)*model%free(:, l))**2)
+          sums(1) = sums(1) + sum((this%acc(:, l)*model%mass(l)*this%free_dof(:, l))**2)
         end do
         if (this%method == method_kinetic) then
           sums(2) = ke
@@ -344,7 +352,7 @@ contains
           ! Rayleigh quotient of the correction so far: (du . dr) / (du . M_f du)
           do l = 1, n
             sums(2) = sums(2) + model%mass(l)*dot_product(y(1:2, l) - this%u0(:, l), &
-                      (this%acc0(:, l) - this%acc(:, l))*model%free(:, l))
+                      (this%acc0(:, l) - this%acc(:, l))*this%free_dof(:, l))
             sums(3) = sums(3) + sum(this%mk(:, l)*(y(1:2, l) - this%u0(:, l))**2)
           end do
         end if
@@ -409,12 +417,12 @@ contains
       this%yw(3:4, 1:n) = this%du_conv
       call halo%exchange(this%yw)
       call model%rate(lat, this%yw, t_prev, this%acc, p_ext, p_damp)
-      sums(1) = p_ext - reaction_inertia(model, this%acc, this%yw, n)
+      sums(1) = p_ext - reaction_inertia(model, this%free_dof, this%acc, this%yw, n)
     end if
     y(3:4, 1:n) = this%du_conv
     call halo%exchange(y)
     call model%rate(lat, y, t, this%acc, p_ext, p_damp)
-    sums(1) = sums(1) + p_ext - reaction_inertia(model, this%acc, y, n)
+    sums(1) = sums(1) + p_ext - reaction_inertia(model, this%free_dof, this%acc, y, n)
     res%work = 0.5_wp*sums(1)
     y(3:4, :) = 0.0_wp
 
@@ -426,14 +434,14 @@ contains
 
   !> The part of model%rate's external power that is the prescribed dofs' imposed
   !> acceleration (mass times acceleration times velocity), to be removed in a static run.
-  pure real(wp) function reaction_inertia(model, acc, y, n) result(p)
+  pure real(wp) function reaction_inertia(model, free, acc, y, n) result(p)
     type(model_t), intent(in) :: model
-    real(wp), intent(in) :: acc(:, :), y(:, :)
+    real(wp), intent(in) :: free(:, :), acc(:, :), y(:, :)
     integer, intent(in) :: n
     integer :: l
     p = 0.0_wp
     do l = 1, n
-      p = p + model%mass(l)*sum((1.0_wp - model%free(:, l))*acc(:, l)*y(3:4, l))
+      p = p + model%mass(l)*sum((1.0_wp - free(:, l))*acc(:, l)*y(3:4, l))
     end do
   end function reaction_inertia
 
@@ -443,6 +451,7 @@ contains
     if (allocated(this%c)) deallocate(this%c, this%mk, this%w, this%acc, this%u_conv, &
       this%du_conv, this%du_p, this%du_p_prev, this%u0, this%acc0, this%yw)
     if (allocated(this%load_weight)) deallocate(this%load_weight)
+    if (allocated(this%free_dof)) deallocate(this%free_dof)
     this%have_step = .false.
   end subroutine relaxation_free
 end module iem_relaxation

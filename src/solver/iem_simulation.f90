@@ -57,7 +57,6 @@ module iem_simulation
     real(wp), allocatable :: sample(:)
     real(wp) :: e0 = 0.0_wp, e_scale = 0.0_wp, last_balance = 0.0_wp
     real(wp) :: w_ext = 0.0_wp, w_damp = 0.0_wp
-    real(wp), allocatable :: ubuf(:, :), vbuf(:, :)
     logical :: output_open = .false.
   contains
     procedure :: setup => simulation_setup
@@ -154,14 +153,11 @@ contains
       this%probe_local(k) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k), 1)
     end do
 
-    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state)
-    call this%model%prescribe(this%st%y, 0.0_wp)
     allocate(this%h_time(history_chunk), this%h_step(history_chunk))
     allocate(this%h_energy(n_energy, history_chunk))
     allocate(this%h_pu(2, np, history_chunk), this%h_pv(2, np, history_chunk))
     allocate(this%h_load(history_chunk), this%h_res(history_chunk), this%h_iter(history_chunk))
     allocate(this%sample(4 + 4*np))
-    allocate(this%ubuf(2, this%lat%n_owned), this%vbuf(2, this%lat%n_owned))
     stat = 0
     msg = ''
   end subroutine simulation_setup
@@ -177,6 +173,10 @@ contains
 
     call open_output(this, stat, msg)
     if (stat /= 0) return
+    ! the state is allocated only now, after the mesh output's temporaries are gone, so that
+    ! they do not add to the peak memory
+    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state)
+    call this%model%prescribe(this%st%y, 0.0_wp)
     if (this%static) then
       call run_static(this, stat, msg)
       return
@@ -312,13 +312,13 @@ contains
     do l = 1, this%lat%n_owned
       coords(:, l) = this%grid%node_xy(this%lat%gid(l))
     end do
-    nc = count(this%lat%cell_counted)
+    nc = this%lat%n_counted()
     allocate(cells(4, nc), cell_gids(nc))
     k = 0
     do l = 1, this%lat%n_cells
       if (.not. this%lat%cell_counted(l)) cycle
       k = k + 1
-      nodes = this%grid%cell_corners(this%lat%cell_gid(l))
+      nodes = this%lat%gid(this%lat%cell_nodes(:, l))
       cells(:, k) = nodes
       cell_gids(k) = this%lat%cell_gid(l)
     end do
@@ -349,7 +349,7 @@ contains
     this%sample(4) = this%w_damp
     do p = 1, np
       if (this%probe_local(p) > 0) then
-        this%sample(4 + 4*(p - 1) + 1:4 + 4*p) = this%st%y(:, this%probe_local(p))
+        this%sample(4 + 4*(p - 1) + 1:4 + 4*p) = this%st%y(1:4, this%probe_local(p))
       end if
     end do
     call MPI_Allreduce(MPI_IN_PLACE, this%sample, size(this%sample), mpi_wp(), MPI_SUM, this%comm)
@@ -408,9 +408,8 @@ contains
     character(len=:), allocatable :: msg
     integer :: n
     n = this%lat%n_owned
-    this%ubuf = this%st%y(1:2, 1:n)
-    this%vbuf = this%st%y(3:4, 1:n)
-    call this%out%write_frame(k, t, this%ubuf, this%vbuf, stat, msg)
+    ! the sections are copied to contiguous temporaries at output time only
+    call this%out%write_frame(k, t, this%st%y(1:2, 1:n), this%st%y(3:4, 1:n), stat, msg)
   end subroutine write_frame
 
   !> The load steps of a static run: relax to equilibrium at each pseudo-time t_k = k t_end/N

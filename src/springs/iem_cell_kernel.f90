@@ -36,26 +36,27 @@ contains
     real(wp), intent(in) :: u(2, 4), v(2, 4), beta
     real(wp), intent(out) :: f(2, 4), energy, damp_power
     integer, parameter :: nodes(4, 1) = reshape([1, 2, 3, 4], [4, 1])
-    logical, parameter :: counted(1) = [.true.]
     real(wp) :: y(4, 4)
     y(1:2, :) = u
     y(3:4, :) = v
-    call cell_forces(k, nodes, counted, y, beta, f, energy, damp_power)
+    call cell_forces(k, nodes, 4, y, beta, f, energy, damp_power)
   end subroutine cell_force
 
   !> Nodal forces f(2, :) (internal + stiffness damping) of many cells for the state
   !> y(4, :) = (u, v) of the nodes listed in cell_nodes, with the strain energy and the
-  !> damping power summed over the counted cells. Each node's force is summed over its cells in
+  !> damping power summed over the counted cells (those whose first corner is among the
+  !> first n_owned nodes). Each node's force is summed over its cells in
   !> the order of cell_nodes' columns, so the same cells in the same order give bitwise the same
   !> forces whatever else the list holds. Cells go in chunks whose corner values are first
   !> gathered into small unit-stride arrays, so the compiler vectorises the kernel.
   !> The stiffness damping acts on the velocities in rows damp_row:damp_row+1 of y (default 3,
   !> the velocities themselves; 5 for the filtered velocities of capped damping); the damping
   !> power is always taken with the velocities (rows 3:4).
-  pure subroutine cell_forces(k, cell_nodes, counted, y, beta, f, energy, damp_power, damp_row)
+  pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: cell_nodes(:, :)
-    logical, intent(in) :: counted(:)
+    !> A cell is counted when its first corner is one of the nodes 1..n_owned.
+    integer, intent(in) :: n_owned
     real(wp), intent(in) :: y(:, :), beta
     real(wp), intent(out) :: f(:, :), energy, damp_power
     integer, intent(in), optional :: damp_row
@@ -107,7 +108,7 @@ contains
           f(1, node) = f(1, node) + fx(c, q)
           f(2, node) = f(2, node) + fy(c, q)
         end do
-        if (counted(c0 + c - 1)) then
+        if (cell_nodes(1, c0 + c - 1) <= n_owned) then
           energy = energy + en(c)
           damp_power = damp_power + pw(c)
         end if
