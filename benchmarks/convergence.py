@@ -28,7 +28,6 @@ Wall times are iem's own: the relaxation's (``done: ... s wall``) and the time l
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 from pathlib import Path
@@ -140,20 +139,7 @@ def main() -> int:
     ap.add_argument("--cells", nargs="+", default=list(CELLS), choices=CELLS)
     ap.add_argument("--dt-safety", type=float, default=0.9)
     ap.add_argument("--periods", type=float, default=3.0, help="length of the dynamic runs")
-    ap.add_argument("--reference", help="reference JSON (default: the committed FE references)")
-    ap.add_argument("--save", help="write the raw measurements to this JSON file")
-    ap.add_argument("--load", help="report from raw measurements saved by --save (no runs)")
-    args = ap.parse_args()
-    ref = ib.references(args.reference)
-    if args.load:
-        data = json.loads(Path(args.load).read_text())
-    else:
-        if not args.iem:
-            ap.error("--iem is required (or --load)")
-        data = run_all(args)
-        ib.save(args.save, data)
-    report(data, ref, args.png)
-    return 0
+    return ib.measure_and_report(ap, run_all, report)
 
 
 if __name__ == "__main__":

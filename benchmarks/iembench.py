@@ -336,6 +336,25 @@ def build_info(iem: str) -> str:
     return f"{ver}; CMAKE_BUILD_TYPE={get('CMAKE_BUILD_TYPE')}{opt}"
 
 
+def measure_and_report(ap, run_all, report) -> int:
+    """Shared end of the study scripts: add the reference and save/load options, then run the
+    sweep (or load a saved one) and report it against the reference."""
+    ap.add_argument("--reference", help="reference JSON (default: the committed FE references)")
+    ap.add_argument("--save", help="write the raw measurements to this JSON file")
+    ap.add_argument("--load", help="report from raw measurements saved by --save (no runs)")
+    args = ap.parse_args()
+    ref = references(args.reference)
+    if args.load:
+        data = json.loads(Path(args.load).read_text())
+    else:
+        if not args.iem:
+            ap.error("--iem is required (or --load)")
+        data = run_all(args)
+        save(args.save, data)
+    report(data, ref, args.png)
+    return 0
+
+
 def save(path: str | None, data: dict) -> None:
     if path:
         Path(path).write_text(json.dumps(data, indent=1) + "\n")
