@@ -124,19 +124,14 @@ def plot(errors: dict, png: str) -> None:
     ax.set_title("Cantilever L/h = 10: convergence of iem")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    Path(png).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=120)
+    ib.save_figure(fig, png)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--iem", help="path of the iem executable")
     ap.add_argument("--png", help="write the convergence plot here")
-    ap.add_argument("--mpiexec", default="mpirun")
-    ap.add_argument("--ranks", type=int, default=1)
-    ap.add_argument("--depths", type=int, nargs="+", default=[2, 4, 8, 16, 32],
-                    help="cells through the depth")
-    ap.add_argument("--cells", nargs="+", default=list(CELLS), choices=CELLS)
+    ib.add_sweep_args(ap, CELLS)
     ap.add_argument("--dt-safety", type=float, default=0.9)
     ap.add_argument("--periods", type=float, default=3.0, help="length of the dynamic runs")
     return ib.measure_and_report(ap, run_all, report)

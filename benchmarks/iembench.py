@@ -336,6 +336,21 @@ def build_info(iem: str) -> str:
     return f"{ver}; CMAKE_BUILD_TYPE={get('CMAKE_BUILD_TYPE')}{opt}"
 
 
+def add_sweep_args(ap, cells) -> None:
+    """The sweep options the study scripts share: MPI launcher, ranks, grids, cell laws."""
+    ap.add_argument("--mpiexec", default="mpirun")
+    ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--depths", type=int, nargs="+", default=[2, 4, 8, 16, 32],
+                    help="cells through the depth")
+    ap.add_argument("--cells", nargs="+", default=list(cells), choices=cells)
+
+
+def save_figure(fig, png: str) -> None:
+    """Write a matplotlib figure to png, making its folder."""
+    Path(png).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=120)
+
+
 def measure_and_report(ap, run_all, report) -> int:
     """Shared end of the study scripts: add the reference and save/load options, then run the
     sweep (or load a saved one) and report it against the reference."""

@@ -120,19 +120,14 @@ def plot(rows: list[dict], png: str) -> None:
     fig.suptitle("Cantilever step load, 3 periods, RK4: error against wall time "
                  "(labels: cells through the depth)", fontsize=10)
     fig.tight_layout()
-    Path(png).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=120)
+    ib.save_figure(fig, png)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--iem", help="path of the iem executable")
     ap.add_argument("--png", help="write the Pareto plot here")
-    ap.add_argument("--mpiexec", default="mpirun")
-    ap.add_argument("--ranks", type=int, default=1)
-    ap.add_argument("--depths", type=int, nargs="+", default=[2, 4, 8, 16, 32],
-                    help="cells through the depth")
-    ap.add_argument("--cells", nargs="+", default=list(CELLS), choices=CELLS)
+    ib.add_sweep_args(ap, CELLS)
     ap.add_argument("--dt-safety", type=float, nargs="+", default=[0.5, 0.9])
     ap.add_argument("--periods", type=float, default=3.0)
     return ib.measure_and_report(ap, run_all, report)

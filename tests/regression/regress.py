@@ -43,6 +43,17 @@ def run_iem(args: argparse.Namespace, nranks: int, nml: Path, cwd: Path,
                           capture_output=True, timeout=timeout)
 
 
+def run_ok(args: argparse.Namespace, nranks: int, nml: Path, cwd: Path, what: str):
+    """Run iem, check that it exits 0 (printing its output's end if not); the completed
+    process, or None when it failed."""
+    p = run_iem(args, nranks, nml, cwd)
+    check(p.returncode == 0, f"{what} exits 0 (got {p.returncode})")
+    if p.returncode != 0:
+        print(p.stdout[-3000:], p.stderr[-3000:])
+        return None
+    return p
+
+
 def with_output(src: Path, dst: Path, output_file: str) -> Path:
     """Copy a namelist, pointing its output_file at a new name."""
     text = src.read_text()
@@ -84,10 +95,8 @@ def cmd_ranks(args: argparse.Namespace) -> None:
     files = {}
     for n in args.ranks:
         nml = with_output(Path(args.case), work / f"np{n}.nml", f"np{n}.h5")
-        p = run_iem(args, n, nml, work)
-        check(p.returncode == 0, f"run on {n} ranks exits 0 (got {p.returncode})")
-        if p.returncode != 0:
-            print(p.stdout[-3000:], p.stderr[-3000:])
+        p = run_ok(args, n, nml, work, f"run on {n} ranks")
+        if p is None:
             return
         files[n] = h5py.File(work / f"np{n}.h5", "r")
     ref = files[args.ranks[0]]
@@ -134,10 +143,8 @@ def cmd_cantilever(args: argparse.Namespace) -> None:
     work = scratch("cantilever_" + "_".join(args.band_name))
     nml = with_output(Path(args.case), work / "cantilever.nml", "cantilever.h5")
     substitute(nml, args.sub)
-    p = run_iem(args, args.ranks[0], nml, work)
-    check(p.returncode == 0, f"cantilever run exits 0 (got {p.returncode})")
-    if p.returncode != 0:
-        print(p.stdout[-3000:], p.stderr[-3000:])
+    p = run_ok(args, args.ranks[0], nml, work, "cantilever run")
+    if p is None:
         return
     check("energy error" in p.stdout and "step " in p.stdout, "progress lines are printed")
     with h5py.File(work / "cantilever.h5", "r") as f:
@@ -181,10 +188,8 @@ def cmd_patch(args: argparse.Namespace) -> None:
     """Damped patch test in tension: the block settles at eps_x = sigma/E, eps_y = -nu eps_x."""
     work = scratch("patch")
     nml = with_output(Path(args.case), work / "patch.nml", "patch.h5")
-    p = run_iem(args, args.ranks[0], nml, work)
-    check(p.returncode == 0, f"patch run exits 0 (got {p.returncode})")
-    if p.returncode != 0:
-        print(p.stdout[-3000:], p.stderr[-3000:])
+    p = run_ok(args, args.ranks[0], nml, work, "patch run")
+    if p is None:
         return
     with h5py.File(work / "patch.h5", "r") as f:
         x = f["mesh/coordinates"][:]
@@ -217,10 +222,8 @@ def cmd_static(args: argparse.Namespace) -> None:
     work = scratch("static_" + Path(args.case).stem)
     for n in args.ranks:
         nml = with_output(Path(args.case), work / f"np{n}.nml", f"np{n}.h5")
-        p = run_iem(args, n, nml, work)
-        check(p.returncode == 0, f"static run on {n} ranks exits 0 (got {p.returncode})")
-        if p.returncode != 0:
-            print(p.stdout[-3000:], p.stderr[-3000:])
+        p = run_ok(args, n, nml, work, f"static run on {n} ranks")
+        if p is None:
             return
         steps = re.findall(r"^load step (\d+)/(\d+) .* iterations +(\d+) .* wall +([0-9.]+) s",
                            p.stdout, re.M)
@@ -297,10 +300,8 @@ def cmd_convergence(args: argparse.Namespace) -> None:
         substitute(nml, ["nx = 80, ny = 8=>" + f"nx = {10 * ny}, ny = {ny}, cell = 'paper'",
                          "load_steps = 5=>load_steps = 1",
                          "tolerance = 1.0e-6=>" + f"tolerance = {args.tolerance:.1e}"])
-        p = run_iem(args, args.ranks[0], nml, work)
-        check(p.returncode == 0, f"{10 * ny} x {ny}: static run exits 0 (got {p.returncode})")
-        if p.returncode != 0:
-            print(p.stdout[-3000:], p.stderr[-3000:])
+        p = run_ok(args, args.ranks[0], nml, work, f"{10 * ny} x {ny}: static run")
+        if p is None:
             return
         with h5py.File(work / f"ny{ny}.h5", "r") as f:
             st = f["history/static"]
