@@ -68,7 +68,8 @@ STATIC = """! {title}
 
 DYNAMIC = """! {title}
 &run
-  t_end = {t_end:.9e}, dt_safety = {safety}, output_interval = {t_end:.9e}
+  t_end = {t_end:.9e}, dt_safety = {safety}, integrator = '{integrator}'
+  output_interval = {t_end:.9e}
   history_interval = {hist:.9e}, progress_interval = 1.0e6
   output_file = '{out}', overwrite = .true.
 /
@@ -182,16 +183,18 @@ def run_static(iem: str, folder: Path, ny: int, cell: str, tol: float, ranks: in
 
 
 def run_dynamic(iem: str, folder: Path, ny: int, cell: str, safety: float, periods: float = 3.0,
-                samples_per_period: int = 800, ranks: int = 1, mpiexec: str = "mpirun") -> dict:
+                samples_per_period: int = 800, ranks: int = 1, mpiexec: str = "mpirun",
+                integrator: str = "rk4") -> dict:
     """One undamped step-load run over ``periods`` first periods, history every
     T/``samples_per_period``: the period and the static deflection measured from the tip
     history, with every other sample too (the check of the sampling), and iem's timings."""
     nx, ny = grid(ny)
     tg = period_guess()
-    name = f"dynamic_{cell}_{ny}_{safety:g}"
+    name = f"dynamic_{cell}_{ny}_{safety:g}_{integrator}"
     nml = folder / f"{name}.nml"
     nml.write_text(DYNAMIC.format(title=name, out=f"{name}.h5", t_end=periods * tg,
-                                  hist=tg / samples_per_period, safety=safety, nx=nx, ny=ny,
+                                  hist=tg / samples_per_period, safety=safety,
+                                  integrator=integrator, nx=nx, ny=ny,
                                   cell=cell, ty=-TRACTION, ymid=P["h"] / 2, **P))
     out, wall = run(iem, nml, ranks, mpiexec)
     perf = re.search(rf"performance:\s+{NUM} node-steps in\s+{NUM} s:\s+{NUM} node-steps/s", out)
@@ -205,6 +208,7 @@ def run_dynamic(iem: str, folder: Path, ny: int, cell: str, safety: float, perio
     (folder / f"{name}.h5").unlink()
     full, half = measure(t, uy), measure(t[::2], uy[::2])
     return {"ny": ny, "nx": nx, "nodes": n_nodes, "cell": cell, "safety": safety, "dt": dt,
+            "integrator": integrator,
             "steps": steps, "wall_iem": float(perf[2]), "rate": float(perf[3]),
             "wall_process": wall, "energy_error": energy, "samples": len(t),
             "period": full["period"], "mean": full["mean"],

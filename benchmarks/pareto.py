@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Speed against error: the undamped step-load cantilever of issue 3 over a fixed simulated
-time (three first periods), for a sweep of grids x cell model x dt_safety.
+time (three first periods), for a sweep of grids x cell model x time integrator x dt_safety.
 
 Each run (benchmarks/iembench.py, ``run_dynamic``) records iem's wall time of the time loop
 and its node-steps per second (``performance:`` line: no start-up, no final output), and
@@ -10,9 +10,10 @@ oscillates (the constant of the fitted response; iembench.py says how). Prints a
 table and writes a Pareto plot (|error| against wall time, log-log, one panel per quantity,
 one marker per cell model, the Pareto front over all runs joined).
 
-Only RK4 exists (no second time integrator yet), and its step is set by stability, not
-accuracy: the time-integration error of the first mode is (omega_1 dt)^4 ~ 1e-12 here, so
-dt_safety changes the wall time and not the error. Usage (from the repository root):
+Both integrators' steps are set by stability, not accuracy: the time-integration error of
+the first mode's period is (omega_1 dt)^4/120 ~ 1e-16 for RK4 and (omega_1 dt)^2/24 ~ 1e-8 for
+velocity Verlet here, so dt_safety changes the wall time and not the error. Usage (from the
+repository root):
 
     python3 benchmarks/pareto.py --iem build/iem --png docs/img/pareto.png
 """
@@ -27,6 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import iembench as ib  # noqa: E402
 
 CELLS = ("paper", "bending")
+INTEGRATORS = ("rk4", "verlet")
 
 
 def run_all(args) -> dict:
@@ -34,13 +36,16 @@ def run_all(args) -> dict:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for cell in args.cells:
-            for ny in args.depths:
-                for safety in args.dt_safety:
-                    d = ib.run_dynamic(iem, Path(tmp), ny, cell, safety, args.periods,
-                                       ranks=args.ranks, mpiexec=args.mpiexec)
-                    rows.append(d)
-                    print(f"# {cell} {ny} {safety}: {d['steps']} steps, {d['wall_iem']:.2f} s, "
-                          f"{d['rate']:.3e} node-steps/s", file=sys.stderr, flush=True)
+            for integ in args.integrators:
+                for ny in args.depths:
+                    for safety in args.dt_safety:
+                        d = ib.run_dynamic(iem, Path(tmp), ny, cell, safety, args.periods,
+                                           ranks=args.ranks, mpiexec=args.mpiexec,
+                                           integrator=integ)
+                        rows.append(d)
+                        print(f"# {cell} {integ} {ny} {safety}: {d['steps']} steps, "
+                              f"{d['wall_iem']:.2f} s, {d['rate']:.3e} node-steps/s",
+                              file=sys.stderr, flush=True)
     return {"rows": rows, "machine": ib.machine(), "build": ib.build_info(iem),
             "ranks": args.ranks, "periods": args.periods}
 
@@ -49,8 +54,8 @@ def front(points: list[tuple[float, float]], same: float = 0.01) -> list[int]:
     """Indices of the Pareto-optimal points (smaller time and smaller error), by time.
 
     Errors within ``same`` (relative) of each other count as equal: runs that differ only in
-    dt_safety have the same error to about 1e-7 (RK4's error is negligible here), so the
-    slower of them is not on the front."""
+    dt_safety or integrator have the same error to about 1e-5 (the time-integration error is
+    negligible here), so the slower of them is not on the front."""
     order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
     out, best = [], float("inf")
     for i in order:
@@ -70,13 +75,14 @@ def report(data: dict, ref: dict, png: str | None) -> None:
     print(f"Reference: u_y(L, h/2) = {ref['uy_tip']:.6e} m, first period {ref['period']:.6e} s "
           f"({ref['source']}).")
     print(f"Machine: {data['machine']}. Build: {data['build']}. {data['ranks']} rank(s); "
-          f"{data['periods']:g} Timoshenko periods simulated; time integrator RK4 (the only one).\n")
-    print("| cell | cells through depth | nodes | dt_safety | steps | wall (s) | node-steps/s | "
-          "error of u_y (mean) | error of period | Pareto front (u_y, period) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          f"{data['periods']:g} Timoshenko periods simulated.\n")
+    print("| cell | integrator | cells through depth | nodes | dt_safety | steps | wall (s) | "
+          "node-steps/s | error of u_y (mean) | error of period | Pareto front (u_y, period) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for i, r in enumerate(rows):
         mark = ", ".join(q for q, s in (("u_y", fu), ("period", ft)) if i in s) or ""
-        print(f"| {r['cell']} | {r['ny']} | {r['nodes']:,} | {r['safety']:g} | {r['steps']} | "
+        print(f"| {r['cell']} | {integrator(r)} | {r['ny']} | {r['nodes']:,} | {r['safety']:g} | "
+              f"{r['steps']} | "
               f"{r['wall_iem']:.3f} | {r['rate']:.3e} | {r['err_u']:+.2e} | {r['err_t']:+.2e} | "
               f"{mark} |")
     print()
@@ -85,26 +91,32 @@ def report(data: dict, ref: dict, png: str | None) -> None:
         print(f"plot: {png}")
 
 
+def integrator(r: dict) -> str:
+    """The run's integrator (runs saved before the integrator axis existed are RK4)."""
+    return r.get("integrator", "rk4")
+
+
 def plot(rows: list[dict], png: str) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), sharex=True)
-    style = {"paper": ("o", "C0"), "bending": ("s", "C3")}
+    style = {("paper", "rk4"): ("o", "C0"), ("bending", "rk4"): ("s", "C3"),
+             ("paper", "verlet"): ("^", "C2"), ("bending", "verlet"): ("D", "C1")}
     safeties = sorted({r["safety"] for r in rows})
     for ax, key, what in ((axes[0], "err_u", "static tip deflection (mean of the response)"),
                           (axes[1], "err_t", "first period")):
         pts = [(r["wall_iem"], abs(r[key])) for r in rows]
-        for cell in CELLS:
-            m, c = style[cell]
+        for (cell, integ), (m, c) in style.items():
             for s in safeties:
-                sel = [r for r in rows if r["cell"] == cell and r["safety"] == s]
+                sel = [r for r in rows if r["cell"] == cell and r["safety"] == s
+                       and integrator(r) == integ]
                 if not sel:
                     continue
                 filled = s == max(safeties)
                 ax.loglog([r["wall_iem"] for r in sel], [abs(r[key]) for r in sel], m, color=c,
                           mfc=c if filled else "none", ms=7, ls="none",
-                          label=f"{cell}, dt_safety {s:g}")
+                          label=f"{cell}, {integ}, dt_safety {s:g}")
                 for r in sel:
                     if filled:
                         ax.annotate(str(r["ny"]), (r["wall_iem"], abs(r[key])), fontsize=7,
@@ -117,7 +129,8 @@ def plot(rows: list[dict], png: str) -> None:
         ax.set_title(what, fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
     axes[0].legend(fontsize=7)
-    fig.suptitle("Cantilever step load, 3 periods, RK4: error against wall time "
+    fig.suptitle("Cantilever step load, 3 periods, RK4 and velocity Verlet: error against "
+                 "wall time "
                  "(labels: cells through the depth)", fontsize=10)
     fig.tight_layout()
     ib.save_figure(fig, png)
@@ -129,6 +142,7 @@ def main() -> int:
     ap.add_argument("--png", help="write the Pareto plot here")
     ib.add_sweep_args(ap, CELLS)
     ap.add_argument("--dt-safety", type=float, nargs="+", default=[0.5, 0.9])
+    ap.add_argument("--integrators", nargs="+", default=list(INTEGRATORS), choices=INTEGRATORS)
     ap.add_argument("--periods", type=float, default=3.0)
     return ib.measure_and_report(ap, run_all, report)
 

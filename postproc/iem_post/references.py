@@ -67,6 +67,7 @@ __all__ = [
     "timoshenko_frequency_bottom_pins_rayleigh",
     "beam_references",
     "load_fe_references",
+    "deflection_relative_to_end_faces",
 ]
 
 #: Parameters of the two issue-3 scenes (SI units; plane stress).
@@ -486,3 +487,29 @@ def load_fe_references(path: Optional[Union[str, Path]] = None) -> Dict[str, Any
     else:
         text = resources.files("iem_post").joinpath("data/fe_references.json").read_text(encoding="utf-8")
     return json.loads(text)
+
+
+def deflection_relative_to_end_faces(
+    coordinates: np.ndarray, displacement: np.ndarray, x: float, y: float
+) -> float:
+    """Deflection ``u_y`` of the node nearest to ``(x, y)`` relative to the end faces: minus
+    the mean of the two end faces' mean ``u_y`` (each face's mean is the trapezoid integral
+    of ``u_y`` over the nodes on ``x = min x`` and ``x = max x``, divided by the face height).
+
+    This is the three-point-bending quantity ``d_mid`` of :func:`load_fe_references` when
+    ``(x, y) = (L/2, 0)``: it converges as the grid is refined, whereas the raw ``u_y`` does
+    not (a point support indents a 2D body by an amount that grows like the log of the grid
+    size).  ``coordinates`` and ``displacement`` are ``(n, 2)`` arrays of a frame.
+    """
+    xy = np.asarray(coordinates, dtype=float)
+    u = np.asarray(displacement, dtype=float)
+    height = float(xy[:, 1].max() - xy[:, 1].min())
+    tol = 1e-9 * max(float(np.ptp(xy[:, 0])), height)
+
+    def face_mean(x_face: float) -> float:
+        on = np.abs(xy[:, 0] - x_face) <= tol
+        order = np.argsort(xy[on, 1])
+        return float(np.trapezoid(u[on, 1][order], xy[on, 1][order])) / height
+
+    node = int(np.argmin(np.hypot(xy[:, 0] - x, xy[:, 1] - y)))
+    return float(u[node, 1]) - 0.5 * (face_mean(float(xy[:, 0].min())) + face_mean(float(xy[:, 0].max())))

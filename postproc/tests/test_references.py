@@ -188,3 +188,20 @@ def test_load_fe_references_path(tmp_path) -> None:
     p = tmp_path / "r.json"
     p.write_text('{"cantilever": {}}', encoding="utf-8")
     assert ref.load_fe_references(p) == {"cantilever": {}}
+
+
+def test_deflection_relative_to_end_faces():
+    from iem_post.references import deflection_relative_to_end_faces
+
+    x, y = np.meshgrid(np.linspace(0.0, 1.0, 11), np.linspace(0.0, 0.1, 5))
+    xy = np.column_stack([x.ravel(), y.ravel()])
+    # a rigid translation and rotation about the y axis of the faces give no relative deflection
+    u = np.column_stack([np.zeros(len(xy)), -3e-4 + 1e-4 * xy[:, 0]])
+    assert abs(deflection_relative_to_end_faces(xy, u, 0.5, 0.0)) < 1e-15
+    # a parabolic sag of -2e-4 at mid-span, plus end-face terms linear in y whose means are
+    # -1e-5 (left) and -3e-5 (right) and which vanish at y = 0: d = -2e-4 + 2e-5
+    sag = -2e-4 * 4 * xy[:, 0] * (1 - xy[:, 0])
+    face = np.where(xy[:, 0] < 0.5, -1e-5, -3e-5) * (xy[:, 1] / 0.05)
+    u = np.column_stack([np.zeros(len(xy)), sag + face])
+    d = deflection_relative_to_end_faces(xy, u, 0.5, 0.0)
+    assert d == pytest.approx(-1.8e-4, rel=1e-12)

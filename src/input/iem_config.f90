@@ -13,6 +13,8 @@ module iem_config
   !> Run control (&run).
   type :: run_config_t
     character(len=16) :: analysis = 'dynamic'
+    !> Time integrator of a dynamic run: 'rk4' or 'verlet' (velocity Verlet).
+    character(len=16) :: integrator = 'rk4'
     real(wp) :: t_end = 0.0_wp
     real(wp) :: dt = 0.0_wp
     real(wp) :: dt_safety = 0.9_wp

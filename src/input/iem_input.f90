@@ -215,21 +215,23 @@ contains
     type(config_t), intent(inout) :: cfg
     integer, intent(out) :: ios
     character(len=:), allocatable, intent(out) :: iomsg
-    character(len=16) :: analysis
+    character(len=16) :: analysis, integrator
     real(wp) :: t_end, dt, dt_safety, output_interval, history_interval, progress_interval
     character(len=path_len) :: output_file
     logical :: overwrite
     character(len=256) :: m
-    namelist /run/ analysis, t_end, dt, dt_safety, output_interval, history_interval, &
-      progress_interval, output_file, overwrite
-    analysis = cfg%run%analysis; t_end = unset_real; dt = cfg%run%dt
+    namelist /run/ analysis, integrator, t_end, dt, dt_safety, output_interval, &
+      history_interval, progress_interval, output_file, overwrite
+    analysis = cfg%run%analysis; integrator = cfg%run%integrator
+    t_end = unset_real; dt = cfg%run%dt
     dt_safety = cfg%run%dt_safety; output_interval = cfg%run%output_interval
     history_interval = cfg%run%history_interval; progress_interval = cfg%run%progress_interval
     output_file = cfg%run%output_file; overwrite = cfg%run%overwrite
     m = ''
     read(chunk, nml=run, iostat=ios, iomsg=m)
     iomsg = trim(m)
-    cfg%run%analysis = lower(analysis); cfg%run%t_end = t_end; cfg%run%dt = dt
+    cfg%run%analysis = lower(analysis); cfg%run%integrator = lower(integrator)
+    cfg%run%t_end = t_end; cfg%run%dt = dt
     cfg%run%dt_safety = dt_safety; cfg%run%output_interval = output_interval
     cfg%run%history_interval = history_interval; cfg%run%progress_interval = progress_interval
     cfg%run%output_file = output_file; cfg%run%overwrite = overwrite
@@ -244,9 +246,9 @@ contains
     character(len=line_len), allocatable :: chunk(:)
     character(len=:), allocatable :: iomsg
     character(len=*), parameter :: label = '&run'
-    call check_keys(text, g, [character(len=20) :: 'analysis', 't_end', 'dt', 'dt_safety', &
-      'output_interval', 'history_interval', 'progress_interval', 'output_file', 'overwrite'], &
-      label, stat, msg)
+    call check_keys(text, g, [character(len=20) :: 'analysis', 'integrator', 't_end', 'dt', &
+      'dt_safety', 'output_interval', 'history_interval', 'progress_interval', 'output_file', &
+      'overwrite'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_run(chunk, cfg, stat, iomsg)
@@ -259,6 +261,9 @@ contains
       if (r%analysis /= 'dynamic' .and. r%analysis /= 'static') then
         call bad(label, 'analysis', "'"//trim(r%analysis)//"'", &
                  "must be 'dynamic' or 'static'", stat, msg)
+      else if (r%integrator /= 'rk4' .and. r%integrator /= 'verlet') then
+        call bad(label, 'integrator', "'"//trim(r%integrator)//"'", &
+                 "must be 'rk4' or 'verlet'", stat, msg)
       else if (r%analysis == 'static' .and. len(dynamic_only(text, g)) > 0) then
         call bad(label, dynamic_only(text, g), '', "applies only to analysis = 'dynamic'; "// &
                  "a static run takes its steps from &static (load_steps) and writes one "// &
@@ -295,8 +300,8 @@ contains
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
     character(len=:), allocatable :: name
-    character(len=*), parameter :: vars(*) = [character(len=16) :: 'dt', 'dt_safety', &
-      'output_interval', 'history_interval']
+    character(len=*), parameter :: vars(*) = [character(len=16) :: 'integrator', 'dt', &
+      'dt_safety', 'output_interval', 'history_interval']
     integer :: k
     name = ''
     associate(grp => text%groups(g))

@@ -37,8 +37,13 @@ module iem_model
     real(wp), allocatable :: load_force(:, :)
     type(time_function_spec_t), allocatable :: load_tf(:)
     real(wp), allocatable :: load_scale(:)
-    !> Work arrays: cell forces summed per local node, external forces of owned nodes.
-    real(wp), allocatable :: f(:, :), fext(:, :)
+    !> Work array: cell forces summed per local node.
+    real(wp), allocatable :: f(:, :)
+    !> External forces, stored only for the owned nodes that carry a load: ext_node(s) is
+    !> the node of slot s (ascending), fext(:, s) its summed load; load_slot(n) is the slot of
+    !> load entry n, bc_slot(q) that of prescribed dof q (0: the node carries no load).
+    integer, allocatable :: ext_node(:), load_slot(:), bc_slot(:)
+    real(wp), allocatable :: fext(:, :)
     !> Strain energy of the counted cells at the last rate evaluation.
     real(wp) :: energy = 0.0_wp
   contains
@@ -89,9 +94,8 @@ contains
       ij(:, l) = lat%node_ij(l)
     end do
     allocate(this%f(2, lat%n_local))
-    allocate(this%fext(2, lat%n_owned), taken(2, lat%n_owned))
+    allocate(taken(2, lat%n_owned))
     this%f = 0.0_wp
-    this%fext = 0.0_wp
     n_selected = 0
 
     ! boundary conditions: a later &bc overrides an earlier one on the same dof
@@ -166,7 +170,38 @@ contains
         end select
       end do
     end do
+    call index_loaded_nodes(this, lat%n_owned)
   end subroutine model_init
+
+  !> The slots of the loaded nodes (ascending node order) for the compact external forces.
+  subroutine index_loaded_nodes(this, n_owned)
+    type(model_t), intent(inout) :: this
+    integer, intent(in) :: n_owned
+    integer, allocatable :: slot_of(:)
+    integer :: n, l, q
+    allocate(slot_of(n_owned))
+    slot_of = 0
+    do n = 1, size(this%load_node)
+      slot_of(this%load_node(n)) = 1
+    end do
+    allocate(this%ext_node(count(slot_of > 0)))
+    n = 0
+    do l = 1, n_owned
+      if (slot_of(l) == 0) cycle
+      n = n + 1
+      this%ext_node(n) = l
+      slot_of(l) = n
+    end do
+    allocate(this%fext(2, n), this%load_slot(size(this%load_node)), &
+             this%bc_slot(size(this%bc_node)))
+    this%fext = 0.0_wp
+    do n = 1, size(this%load_node)
+      this%load_slot(n) = slot_of(this%load_node(n))
+    end do
+    do q = 1, size(this%bc_node)
+      this%bc_slot(q) = slot_of(this%bc_node(q))
+    end do
+  end subroutine index_loaded_nodes
 
   !> Overwrite the velocities of prescribed dofs in y(4, :) with their values at time t.
   subroutine model_prescribe(this, y, t)
@@ -192,7 +227,7 @@ contains
     real(wp), intent(out) :: acc(:, :)
     real(wp), intent(out) :: p_ext, p_damp
     real(wp) :: f(2), r
-    integer :: l, b, ld, comp, n
+    integer :: l, b, ld, comp, n, s
     logical :: changed
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
@@ -209,16 +244,21 @@ contains
     if (changed) then
       this%fext = 0.0_wp
       do n = 1, size(this%load_node)
-        l = this%load_node(n)
-        this%fext(:, l) = this%fext(:, l) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+        s = this%load_slot(n)
+        this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
       end do
     end if
-    ! accelerations
-    p_ext = 0.0_wp
+    ! accelerations: unloaded nodes, then the loaded ones again with their loads
     do l = 1, lat%n_owned
       f = this%f(:, l) + this%alpha*this%mass(l)*y(3:4, l)
-      acc(1:2, l) = (this%fext(:, l) - f)/this%mass(l)
-      p_ext = p_ext + this%fext(1, l)*y(3, l) + this%fext(2, l)*y(4, l)
+      acc(1:2, l) = -f/this%mass(l)
+    end do
+    p_ext = 0.0_wp
+    do s = 1, size(this%ext_node)
+      l = this%ext_node(s)
+      f = this%f(:, l) + this%alpha*this%mass(l)*y(3:4, l)
+      acc(1:2, l) = (this%fext(:, s) - f)/this%mass(l)
+      p_ext = p_ext + this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
     end do
     ! prescribed dofs: imposed acceleration; the support reaction does work
     do n = 1, size(this%bc_node)
@@ -227,8 +267,8 @@ contains
       b = this%bc_id(n)
       acc(comp, l) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
       if (y(2 + comp, l) /= 0.0_wp) then
-        r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + this%f(comp, l) - &
-            this%fext(comp, l)
+        r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + this%f(comp, l)
+        if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
         p_ext = p_ext + r*y(2 + comp, l)
       end if
     end do

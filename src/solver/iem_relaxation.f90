@@ -236,7 +236,7 @@ contains
     real(wp), intent(in) :: t_prev, t
     type(relax_result_t), intent(out) :: res
     real(wp) :: sums(5), level, s, p_ext, p_damp, f_half, ke, ke_old, rel, a1, a2, q
-    integer :: l, n, it
+    integer :: l, n, it, j
     logical :: need_eval, check, half
 
     n = lat%n_owned
@@ -256,8 +256,11 @@ contains
     call halo%exchange(y)
     call model%rate(lat, y, t, this%acc, p_ext, p_damp)
     sums = 0.0_wp
+    do j = 1, size(model%ext_node)
+      l = model%ext_node(j)
+      sums(1) = sums(1) + sum((model%fext(:, j)*this%free_dof(:, l))**2)
+    end do
     do l = 1, n
-      sums(1) = sums(1) + sum((model%fext(:, l)*this%free_dof(:, l))**2)
       sums(2) = sums(2) + sum((this%acc(:, l)*model%mass(l)*this%free_dof(:, l))**2)
       sums(3) = sums(3) + dot_product(this%du_p(:, l), this%du_p_prev(:, l))
       sums(4) = sums(4) + sum(this%du_p_prev(:, l)**2)

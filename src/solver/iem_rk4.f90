@@ -1,67 +1,17 @@
 !> Classical explicit 4th-order Runge-Kutta step of the first-order system (u, v), with a halo
-!> exchange before every stage's force evaluation.
+!> exchange before every stage's force evaluation; stage 1 is iem_state's state_rate.
 module iem_rk4
   use iem_kinds, only: wp
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_model, only: model_t
+  use iem_state, only: state_t
   use iem_timers, only: timer_start, timer_stop, t_force, t_halo, t_update
   implicit none
   private
-  public :: state_t, rk4_first_stage, rk4_finish_step
-
-  !> State vectors of one rank: y = (u_x, u_y, v_x, v_y[, w_x, w_y]) per local node (w: the
-  !> filtered velocity of capped damping), plus RK4 work arrays.
-  type :: state_t
-    !> State at the start of the step (owned and halo nodes).
-    real(wp), allocatable :: y(:, :)
-    !> Stage state (owned and halo nodes).
-    real(wp), allocatable :: ys(:, :)
-    !> Accumulated new state (owned nodes).
-    real(wp), allocatable :: ynew(:, :)
-    !> Rates of rows 3: of the current stage (owned nodes): accelerations[, filter rates].
-    real(wp), allocatable :: acc(:, :)
-    !> Local power of external forces and of damping at stage 1.
-    real(wp) :: p_ext1 = 0.0_wp, p_damp1 = 0.0_wp
-  contains
-    procedure :: init => state_init
-  end type state_t
+  public :: rk4_finish_step
 
 contains
-
-  !> Allocate the state for n_local nodes of which n_owned are owned, with n_state values a
-  !> node (default 4); all zero.
-  subroutine state_init(this, n_owned, n_local, n_state)
-    class(state_t), intent(inout) :: this
-    integer, intent(in) :: n_owned, n_local
-    integer, intent(in), optional :: n_state
-    integer :: ns
-    ns = 4
-    if (present(n_state)) ns = n_state
-    if (allocated(this%y)) deallocate(this%y, this%ys, this%ynew, this%acc)
-    allocate(this%y(ns, n_local), this%ys(ns, n_local), this%ynew(ns, n_owned), &
-             this%acc(ns - 2, n_owned))
-    this%y = 0.0_wp
-    this%ys = 0.0_wp
-    this%ynew = 0.0_wp
-    this%acc = 0.0_wp
-  end subroutine state_init
-
-  !> Stage 1 at time t: exchange the halo of y and evaluate the rate there. Kept apart so the
-  !> caller can record energies and output of the state y, which this evaluation provides.
-  subroutine rk4_first_stage(model, lat, halo, st, t)
-    type(model_t), intent(inout) :: model
-    type(local_lattice_t), intent(in) :: lat
-    type(halo_t), intent(inout) :: halo
-    type(state_t), intent(inout) :: st
-    real(wp), intent(in) :: t
-    call timer_start(t_halo)
-    call halo%exchange(st%y)
-    call timer_stop(t_halo)
-    call timer_start(t_force)
-    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1)
-    call timer_stop(t_force)
-  end subroutine rk4_first_stage
 
   !> Stages 2-4 and the update y <- y + dt/6 (k1 + 2 k2 + 2 k3 + k4); accumulates the local
   !> external work and damping dissipation of the step with the same weights.

@@ -1,5 +1,5 @@
 !> A whole run: set up the lattice, model and output from a validated configuration, then
-!> march in time with RK4 (analysis = 'dynamic') or relax load step by load step (analysis =
+!> march in time with RK4 or velocity Verlet (analysis = 'dynamic') or relax load step by load step (analysis =
 !> 'static'), recording history, frames and progress.
 module iem_simulation
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
@@ -12,8 +12,10 @@ module iem_simulation
   use iem_halo, only: halo_t
   use iem_decomposition, only: decompose
   use iem_model, only: model_t
-  use iem_rk4, only: state_t, rk4_first_stage, rk4_finish_step
-  use iem_stable_dt, only: cell_omega_max, rk4_stable_dt
+  use iem_state, only: state_t, state_rate
+  use iem_rk4, only: rk4_finish_step
+  use iem_verlet, only: verlet_step
+  use iem_stable_dt, only: cell_omega_max, rk4_stable_dt, verlet_stable_dt
   use iem_relaxation, only: relaxation_t, relax_result_t, relax_check_interval
   use iem_h5_output, only: h5_output_t
   use iem_build_info, only: iem_version
@@ -41,6 +43,8 @@ module iem_simulation
     !> Dynamic relaxation of a static run.
     type(relaxation_t) :: relax
     logical :: static = .false.
+    !> Dynamic runs: velocity Verlet instead of RK4.
+    logical :: verlet = .false.
     type(h5_output_t) :: out
     real(wp) :: dt = 0.0_wp, dt_limit = 0.0_wp, omega_max = 0.0_wp
     integer(i8) :: n_steps = 0
@@ -80,6 +84,7 @@ contains
 
     this%cfg = cfg
     this%static = cfg%run%analysis == 'static'
+    this%verlet = .not. this%static .and. cfg%run%integrator == 'verlet'
     if (this%static) then
       ! a static run has no damping: relaxation brings its own
       if (cfg%damping%kind /= 'none') call log_warn('&damping is ignored in a static analysis '// &
@@ -125,14 +130,20 @@ contains
       this%n_steps = cfg%static%load_steps
       this%dt = cfg%run%t_end/real(this%n_steps, wp)
     else
-      this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
-                                    this%model%omega_cap)
+      if (this%verlet) then
+        this%dt_limit = verlet_stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
+                                         this%model%omega_cap)
+      else
+        this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
+                                      this%model%omega_cap)
+      end if
       if (cfg%run%dt > 0.0_wp) then
         if (cfg%run%dt > this%dt_limit) then
           stat = 1
           msg = trim(cfg%input_file)//': &run: dt = '//rtoa(cfg%run%dt)// &
                 ' s is above the stability limit '//rtoa(this%dt_limit)// &
-                ' s of RK4 for this grid and damping (omega_max = '//rtoa(this%omega_max)// &
+                ' s of '//integrator_name(this)//' for this grid and damping (omega_max = '// &
+                rtoa(this%omega_max)// &
                 ' rad/s); use dt <= '//rtoa(this%dt_limit)//' or dt = 0 (automatic)'
           return
         end if
@@ -175,7 +186,8 @@ contains
     if (stat /= 0) return
     ! the state is allocated only now, after the mesh output's temporaries are gone, so that
     ! they do not add to the peak memory
-    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state)
+    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
+                      rk4_work=.not. (this%static .or. this%verlet))
     call this%model%prescribe(this%st%y, 0.0_wp)
     if (this%static) then
       call run_static(this, stat, msg)
@@ -190,7 +202,9 @@ contains
     this%w_damp = 0.0_wp
     do k = 0, this%n_steps
       t = real(k, wp)*this%dt
-      call rk4_first_stage(this%model, this%lat, this%halo, this%st, t)
+      ! the rates at y(t): Verlet's last step has evaluated them already
+      if (k == 0 .or. .not. this%verlet) call state_rate(this%model, this%lat, this%halo, &
+                                                         this%st, t)
       if (k == 0 .or. k == this%n_steps .or. &
           crossed(t_prev, t, this%cfg%run%history_interval)) then
         call record_sample(this, k, t, diverged)
@@ -216,8 +230,13 @@ contains
       end if
       if (this%rank == 0) call progress(this, k, t, wall0, wall_last, next_report)
       if (k == this%n_steps) exit
-      call rk4_finish_step(this%model, this%lat, this%halo, this%st, t, this%dt, &
-                           this%w_ext, this%w_damp)
+      if (this%verlet) then
+        call verlet_step(this%model, this%lat, this%halo, this%st, t, this%dt, &
+                         this%w_ext, this%w_damp)
+      else
+        call rk4_finish_step(this%model, this%lat, this%halo, this%st, t, this%dt, &
+                             this%w_ext, this%w_damp)
+      end if
       t_prev = t
     end do
     call flush_history(this, stat)
@@ -499,7 +518,8 @@ contains
       itoa(this%grid%n_cells)//' cells ('//itoa(this%grid%nx)//' x '//itoa(this%grid%ny)// &
       '), '//itoa(this%n_ranks)//' ranks')
     call log_info('time step '//rtoa(this%dt)//' s = '// &
-      rtoa(this%dt/this%dt_limit)//' of the RK4 limit '//rtoa(this%dt_limit)// &
+      rtoa(this%dt/this%dt_limit)//' of the '//integrator_name(this)//' limit '// &
+      rtoa(this%dt_limit)// &
       ' s (omega_max '//rtoa(this%omega_max)//' rad/s); '//itoa(this%n_steps)//' steps to '// &
       rtoa(this%cfg%run%t_end)//' s')
     if (this%model%alpha > 0.0_wp .or. this%model%beta > 0.0_wp) then
@@ -508,9 +528,24 @@ contains
       if (this%model%omega_cap > 0.0_wp) call log_info('stiffness damping acts on the '// &
         'velocity filtered at '//rtoa(this%cfg%damping%cap_frequency)//' Hz (capped)')
       call log_info('damped stable step '//rtoa(this%dt_limit)//' s = '// &
-        rtoa(this%dt_limit*this%omega_max/rk4_imag_limit)//' of the undamped one')
+        rtoa(this%dt_limit/undamped_limit(this))//' of the undamped one')
     end if
   end subroutine report_start
+
+  !> 'RK4' or 'velocity Verlet': the integrator of a dynamic run, for messages.
+  function integrator_name(this) result(name)
+    type(simulation_t), intent(in) :: this
+    character(len=:), allocatable :: name
+    name = 'RK4'
+    if (this%verlet) name = 'velocity Verlet'
+  end function integrator_name
+
+  !> The integrator's stable step without damping.
+  real(wp) function undamped_limit(this) result(dt)
+    type(simulation_t), intent(in) :: this
+    dt = rk4_imag_limit/this%omega_max
+    if (this%verlet) dt = 2.0_wp/this%omega_max
+  end function undamped_limit
 
   !> Rank 0: print a progress line at every 10% of the run and every progress_interval s.
   subroutine progress(this, k, t, wall0, wall_last, next_report)

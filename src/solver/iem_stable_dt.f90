@@ -1,5 +1,6 @@
-!> Stable time step of RK4 for the lattice: omega_max from the cell-level (element-by-element)
-!> bound, and the largest step for which every damped mode stays in RK4's stability region.
+!> Stable time step of the explicit integrators for the lattice: omega_max from the cell-level
+!> (element-by-element) bound, and the largest step for which every damped mode stays stable
+!> under RK4 or velocity Verlet.
 module iem_stable_dt
   use iem_kinds, only: wp
   use iem_constants, only: rk4_imag_limit
@@ -8,7 +9,7 @@ module iem_stable_dt
   implicit none
   private
   public :: cell_stiffness, cell_omega_max, rk4_stable_dt, rk4_amplification, jacobi_eigenvalues
-  public :: modal_damping_ratio, capped_beta, cubic_roots
+  public :: modal_damping_ratio, capped_beta, cubic_roots, verlet_stable_dt, verlet_mode_radius
 
 contains
 
@@ -67,6 +68,82 @@ contains
       end do
     end do
   end function rk4_stable_dt
+
+  !> Largest dt for which velocity Verlet (iem_verlet) is stable for every mode omega in
+  !> [0, omega_max] under the damping of rk4_stable_dt, the damping force taken at the
+  !> half-step velocity; 2/omega_max when undamped.
+  pure real(wp) function verlet_stable_dt(omega_max, alpha, beta, omega_cap) result(dt)
+    real(wp), intent(in) :: omega_max, alpha, beta
+    real(wp), intent(in), optional :: omega_cap
+    integer, parameter :: n_samples = 200, n_scan = 100
+    real(wp), parameter :: tol = 1.0e-10_wp
+    integer :: s, j, it
+    real(wp) :: w, wc, lo, hi, h
+    wc = 0.0_wp
+    if (present(omega_cap)) wc = omega_cap
+    if (alpha == 0.0_wp .and. beta == 0.0_wp) then
+      dt = 2.0_wp/omega_max
+      return
+    end if
+    dt = 2.0_wp/omega_max
+    do s = 1, n_samples
+      w = omega_max*real(s, wp)/n_samples
+      ! first unstable step on a scan below this mode's undamped limit, then bisection
+      lo = 0.0_wp
+      hi = -1.0_wp
+      do j = 1, n_scan
+        h = 2.0_wp/w*real(j, wp)/n_scan
+        if (verlet_mode_radius(w, alpha, beta, wc, h) > 1.0_wp + tol) then
+          hi = h
+          exit
+        end if
+        lo = h
+      end do
+      if (hi < 0.0_wp) cycle
+      do it = 1, 50
+        h = 0.5_wp*(lo + hi)
+        if (verlet_mode_radius(w, alpha, beta, wc, h) > 1.0_wp + tol) then
+          hi = h
+        else
+          lo = h
+        end if
+      end do
+      dt = min(dt, lo)
+    end do
+  end function verlet_stable_dt
+
+  !> Spectral radius of one velocity Verlet step of a mode of frequency w under the damping
+  !> of rk4_stable_dt: the map of (u, half-step velocity, filtered velocity) over one step.
+  pure real(wp) function verlet_mode_radius(w, alpha, beta, wc, dt) result(rho)
+    real(wp), intent(in) :: w, alpha, beta, wc, dt
+    real(wp) :: m(3, 3), z(3), a, c, c2, c1, c0
+    complex(wp) :: lam(3)
+    integer :: j
+    c = 0.0_wp
+    if (wc > 0.0_wp) c = 1.0_wp - exp(-wc*dt)
+    do j = 1, 3
+      z = 0.0_wp
+      z(j) = 1.0_wp
+      ! z = (u, q, w): q the velocity of the last half step, w the filter
+      if (wc > 0.0_wp) then
+        a = -w**2*z(1) - alpha*z(2) - beta*w**2*z(3)
+      else
+        a = -w**2*z(1) - (alpha + beta*w**2)*z(2)
+      end if
+      m(2, j) = z(2) + dt*a
+      m(1, j) = z(1) + dt*m(2, j)
+      m(3, j) = z(3) + c*(m(2, j) - z(3))
+      if (wc == 0.0_wp) m(3, j) = 0.0_wp
+    end do
+    ! characteristic polynomial x^3 + c2 x^2 + c1 x + c0
+    c2 = -(m(1, 1) + m(2, 2) + m(3, 3))
+    c1 = m(1, 1)*m(2, 2) - m(1, 2)*m(2, 1) + m(1, 1)*m(3, 3) - m(1, 3)*m(3, 1) + &
+         m(2, 2)*m(3, 3) - m(2, 3)*m(3, 2)
+    c0 = -(m(1, 1)*(m(2, 2)*m(3, 3) - m(2, 3)*m(3, 2)) - m(1, 2)*(m(2, 1)*m(3, 3) - &
+           m(2, 3)*m(3, 1)) + m(1, 3)*(m(2, 1)*m(3, 2) - m(2, 2)*m(3, 1)))
+    lam = cubic_roots(c2, c1, c0)
+    rho = maxval(abs(lam))
+  end function verlet_mode_radius
 
   !> Eigenvalues of one mode of frequency w under the damping of rk4_stable_dt: the roots of
   !> l^2 + (alpha + beta w^2) l + w^2 (undamped filter, third root 0), or with the filter the

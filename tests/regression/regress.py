@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import hashlib
 import re
 import shutil
 import subprocess
@@ -75,6 +76,13 @@ def substitute(nml: Path, subs: list[str]) -> None:
     nml.write_text(text)
 
 
+def sub_tag(subs: list[str]) -> str:
+    """A short tag naming a set of substitutions, so that variants get their own folders."""
+    if not subs:
+        return ""
+    return "_" + hashlib.sha1("\n".join(subs).encode()).hexdigest()[:8]
+
+
 def scratch(name: str) -> Path:
     """A fresh scratch folder in the current (build) directory."""
     d = Path.cwd() / "regression_work" / name
@@ -91,10 +99,11 @@ def rel_diff(a: np.ndarray, b: np.ndarray) -> float:
 
 def cmd_ranks(args: argparse.Namespace) -> None:
     """The same case on several rank counts gives the same history to 1e-12 relative."""
-    work = scratch("ranks_" + Path(args.case).stem)
+    work = scratch("ranks_" + Path(args.case).stem + sub_tag(args.sub))
     files = {}
     for n in args.ranks:
         nml = with_output(Path(args.case), work / f"np{n}.nml", f"np{n}.h5")
+        substitute(nml, args.sub)
         p = run_ok(args, n, nml, work, f"run on {n} ranks")
         if p is None:
             return
@@ -140,7 +149,7 @@ def cmd_cantilever(args: argparse.Namespace) -> None:
     0.5%). The period must be that of a beam of the same stiffness, T_EB * sqrt(ratio),
     within 2% (shear and rotary inertia lengthen a beam with L/h = 10 by about 1%).
     """
-    work = scratch("cantilever_" + "_".join(args.band_name))
+    work = scratch("cantilever_" + "_".join(args.band_name) + sub_tag(args.sub))
     nml = with_output(Path(args.case), work / "cantilever.nml", "cantilever.h5")
     substitute(nml, args.sub)
     p = run_ok(args, args.ranks[0], nml, work, "cantilever run")
@@ -321,6 +330,38 @@ def cmd_convergence(args: argparse.Namespace) -> None:
                                 f"(observed order {np.log2(abs(factor)):.2f})")
 
 
+def cmd_three_point(args: argparse.Namespace) -> None:
+    """Simply supported beam under a mid-span point load (inputs/simply_supported_static.nml,
+    issue 3): the mid-span deflection relative to the end faces, d = u_y(L/2, 0) minus the
+    mean of the end faces' mean u_y, against the committed plane-stress FE reference
+    three_point_bending.d_mid (-0.10234631 mm, converged to 1e-7). The paper's cell with 8
+    cells through the depth (80 x 8) must be stiff by 4-6% (measured -4.99%, as the
+    cantilever's -5.0%: the bending error of model.md section 8), and the bending-corrected
+    cell with 4 (40 x 4) within 0.5% (measured -0.20%). Both on the given rank count,
+    relaxed to 1e-7 (the deflection is then exact to about 1e-7 relative).
+    """
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "postproc"))
+    from iem_post.references import deflection_relative_to_end_faces, load_fe_references
+    ref = float(load_fe_references()["three_point_bending"]["d_mid"]["value"])
+    print(f"FE reference d_mid = {ref:.6e} m")
+    work = scratch("three_point")
+    for cell, ny, lo, hi in (("paper", 8, -0.06, -0.04), ("bending", 4, -0.005, 0.005)):
+        name = f"{cell}_{ny}"
+        nml = with_output(Path(args.case), work / f"{name}.nml", f"{name}.h5")
+        substitute(nml, ["nx = 80, ny = 8=>" + f"nx = {10 * ny}, ny = {ny}, cell = '{cell}'"])
+        p = run_ok(args, args.ranks[0], nml, work, f"{cell} cell, {10 * ny} x {ny}: static run")
+        if p is None:
+            return
+        with h5py.File(work / f"{name}.h5", "r") as f:
+            check(int(f.attrs["complete"]) == 1, f"{name}: output marked complete")
+            last = sorted(k for k in f["frames"] if k.startswith("frame_"))[-1]
+            d = deflection_relative_to_end_faces(f["mesh/coordinates"][:],
+                                                 f[f"frames/{last}/displacement"][:], 0.5, 0.0)
+        err = d / ref - 1
+        check(lo <= err <= hi, f"{cell} cell, {10 * ny} x {ny}: d = {d:.6e} m, error {err:+.3e} "
+                               f"in [{lo}, {hi}]")
+
+
 def cmd_input_errors(args: argparse.Namespace) -> None:
     """Every malformed input exits non-zero with one message naming the problem, from rank 0
     only, and writes no output file."""
@@ -362,7 +403,7 @@ def main() -> int:
     """Parse arguments and run one regression check."""
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("check", choices=["ranks", "cantilever", "patch", "static", "convergence",
-                                      "input_errors"])
+                                      "three_point", "input_errors"])
     ap.add_argument("--iem", required=True, help="path of the iem executable")
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="", help="extra mpiexec flags, ';'-separated")
@@ -377,7 +418,7 @@ def main() -> int:
     args = ap.parse_args()
     args.band_name = [f"{b:g}" for b in args.band]
     {"ranks": cmd_ranks, "cantilever": cmd_cantilever, "patch": cmd_patch,
-     "static": cmd_static, "convergence": cmd_convergence,
+     "static": cmd_static, "convergence": cmd_convergence, "three_point": cmd_three_point,
      "input_errors": cmd_input_errors}[args.check](args)
     if FAILURES:
         print(f"{len(FAILURES)} check(s) failed")

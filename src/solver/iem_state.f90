@@ -1,0 +1,73 @@
+!> The state of one rank for the explicit integrators: y = (u_x, u_y, v_x, v_y[, w_x, w_y])
+!> per local node (w: the filtered velocity of capped damping), the rates of the last force
+!> evaluation, and the work arrays RK4 needs beside them.
+module iem_state
+  use iem_kinds, only: wp
+  use iem_local_lattice, only: local_lattice_t
+  use iem_halo, only: halo_t
+  use iem_model, only: model_t
+  use iem_timers, only: timer_start, timer_stop, t_force, t_halo
+  implicit none
+  private
+  public :: state_t, state_rate
+
+  !> State vectors of one rank (owned nodes first, then halo nodes).
+  type :: state_t
+    !> State at the start of the step (owned and halo nodes).
+    real(wp), allocatable :: y(:, :)
+    !> RK4 only: stage state (owned and halo nodes).
+    real(wp), allocatable :: ys(:, :)
+    !> RK4 only: accumulated new state (owned nodes).
+    real(wp), allocatable :: ynew(:, :)
+    !> Rates of rows 3: of the last evaluation (owned nodes): accelerations[, filter rates].
+    real(wp), allocatable :: acc(:, :)
+    !> Local power of external forces and of damping at the evaluation of state_rate.
+    real(wp) :: p_ext1 = 0.0_wp, p_damp1 = 0.0_wp
+  contains
+    procedure :: init => state_init
+  end type state_t
+
+contains
+
+  !> Allocate the state for n_local nodes of which n_owned are owned, with n_state values a
+  !> node (default 4), all zero; rk4_work (default true) adds RK4's two work arrays.
+  subroutine state_init(this, n_owned, n_local, n_state, rk4_work)
+    class(state_t), intent(inout) :: this
+    integer, intent(in) :: n_owned, n_local
+    integer, intent(in), optional :: n_state
+    logical, intent(in), optional :: rk4_work
+    integer :: ns
+    logical :: work
+    ns = 4
+    if (present(n_state)) ns = n_state
+    work = .true.
+    if (present(rk4_work)) work = rk4_work
+    if (allocated(this%y)) deallocate(this%y, this%acc)
+    if (allocated(this%ys)) deallocate(this%ys, this%ynew)
+    allocate(this%y(ns, n_local), this%acc(ns - 2, n_owned))
+    this%y = 0.0_wp
+    this%acc = 0.0_wp
+    if (work) then
+      allocate(this%ys(ns, n_local), this%ynew(ns, n_owned))
+      this%ys = 0.0_wp
+      this%ynew = 0.0_wp
+    end if
+  end subroutine state_init
+
+  !> Exchange the halo of y and evaluate the rates at time t into st%acc (with the powers
+  !> p_ext1, p_damp1): the first stage of a step, kept apart so the caller can record the
+  !> energies and output of the state y, which this evaluation provides.
+  subroutine state_rate(model, lat, halo, st, t)
+    type(model_t), intent(inout) :: model
+    type(local_lattice_t), intent(in) :: lat
+    type(halo_t), intent(inout) :: halo
+    type(state_t), intent(inout) :: st
+    real(wp), intent(in) :: t
+    call timer_start(t_halo)
+    call halo%exchange(st%y)
+    call timer_stop(t_halo)
+    call timer_start(t_force)
+    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1)
+    call timer_stop(t_force)
+  end subroutine state_rate
+end module iem_state
