@@ -41,7 +41,7 @@ contains
       write(b, '(g0.6)') x
       s = trim(adjustl(b))
     else
-      write(b, '(es13.6e3)') x
+      write(b, '(es15.6e3)') x
       s = trim(adjustl(b))
     end if
   end function rtoa

@@ -38,6 +38,13 @@ module iem_config
   !> Linear elastic material (&material).
   type :: material_config_t
     real(wp) :: young = 0.0_wp, poisson = 0.0_wp, density = 0.0_wp
+    !> Nonlinear (hyperbolic, Masing) springs, with the continuum strengths (Pa) that set
+    !> each spring kind's reference strain (docs/nonlinear.md), and the reversal points kept
+    !> per spring.
+    logical :: nonlinear = .false.
+    real(wp) :: tensile_strength = 0.0_wp, compressive_strength = 0.0_wp
+    real(wp) :: shear_strength = 0.0_wp
+    integer :: history_depth = 8
   end type material_config_t
 
   !> A set of nodes: a named edge, a box, a point (nearest node) or all nodes.
@@ -101,6 +108,8 @@ module iem_config
   type :: probe_config_t
     character(len=name_len) :: name = ''
     real(wp) :: x = 0.0_wp, y = 0.0_wp
+    !> Also record the strain and stress of the 12 springs of the cell that holds (x, y).
+    logical :: springs = .false.
   end type probe_config_t
 
   !> The whole validated configuration of a run.

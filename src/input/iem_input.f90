@@ -402,14 +402,24 @@ contains
     type(config_t), intent(inout) :: cfg
     integer, intent(out) :: ios
     character(len=:), allocatable, intent(out) :: iomsg
-    real(wp) :: e, nu, density
+    real(wp) :: e, nu, density, tensile_strength, compressive_strength, shear_strength
+    logical :: nonlinear
+    integer :: history_depth
     character(len=256) :: m
-    namelist /material/ e, nu, density
+    namelist /material/ e, nu, density, nonlinear, tensile_strength, compressive_strength, &
+      shear_strength, history_depth
     e = unset_real; nu = unset_real; density = unset_real
+    nonlinear = cfg%material%nonlinear; history_depth = cfg%material%history_depth
+    tensile_strength = unset_real; compressive_strength = unset_real
+    shear_strength = unset_real
     m = ''
     read(chunk, nml=material, iostat=ios, iomsg=m)
     iomsg = trim(m)
     cfg%material%young = e; cfg%material%poisson = nu; cfg%material%density = density
+    cfg%material%nonlinear = nonlinear; cfg%material%history_depth = history_depth
+    cfg%material%tensile_strength = tensile_strength
+    cfg%material%compressive_strength = compressive_strength
+    cfg%material%shear_strength = shear_strength
   end subroutine parse_material
 
   subroutine read_material(text, g, cfg, stat, msg)
@@ -421,7 +431,9 @@ contains
     character(len=line_len), allocatable :: chunk(:)
     character(len=:), allocatable :: iomsg
     character(len=*), parameter :: label = '&material'
-    call check_keys(text, g, [character(len=8) :: 'e', 'nu', 'density'], label, stat, msg)
+    call check_keys(text, g, [character(len=20) :: 'e', 'nu', 'density', 'nonlinear', &
+      'tensile_strength', 'compressive_strength', 'shear_strength', 'history_depth'], label, &
+      stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_material(chunk, cfg, stat, iomsg)
@@ -443,8 +455,36 @@ contains
         call bad(label, 'density', '(not given)', 'is required [kg/m^3]', stat, msg)
       else if (.not. (m%density > 0.0_wp)) then
         call bad(label, 'density', rtoa(m%density), 'must be > 0 [kg/m^3]', stat, msg)
+      else if (m%nonlinear) then
+        call check_strength('tensile_strength', m%tensile_strength)
+        if (stat == 0) call check_strength('compressive_strength', m%compressive_strength)
+        if (stat == 0) call check_strength('shear_strength', m%shear_strength)
+        if (stat == 0 .and. m%history_depth < 2) call bad(label, 'history_depth', &
+          itoa(m%history_depth), 'must be >= 2 (reversal points kept per spring)', stat, msg)
+      else
+        ! strengths without nonlinear = .true. would be silently ignored
+        if (m%tensile_strength /= unset_real) then
+          call bad(label, 'tensile_strength', rtoa(m%tensile_strength), &
+                   'is used only with nonlinear = .true.', stat, msg)
+        else if (m%compressive_strength /= unset_real) then
+          call bad(label, 'compressive_strength', rtoa(m%compressive_strength), &
+                   'is used only with nonlinear = .true.', stat, msg)
+        else if (m%shear_strength /= unset_real) then
+          call bad(label, 'shear_strength', rtoa(m%shear_strength), &
+                   'is used only with nonlinear = .true.', stat, msg)
+        end if
       end if
     end associate
+  contains
+    subroutine check_strength(name, value)
+      character(len=*), intent(in) :: name
+      real(wp), intent(in) :: value
+      if (value == unset_real) then
+        call bad(label, name, '(not given)', 'is required with nonlinear = .true. [Pa]', stat, msg)
+      else if (.not. (value > 0.0_wp)) then
+        call bad(label, name, rtoa(value), 'must be > 0 [Pa]', stat, msg)
+      end if
+    end subroutine check_strength
   end subroutine read_material
 
   ! ------------------------------------------------------------------------------ &damping
@@ -772,13 +812,14 @@ contains
     character(len=:), allocatable, intent(out) :: iomsg
     character(len=name_len) :: name
     real(wp) :: x, y
+    logical :: springs
     character(len=256) :: m
-    namelist /probe/ name, x, y
-    name = ''; x = unset_real; y = unset_real
+    namelist /probe/ name, x, y, springs
+    name = ''; x = unset_real; y = unset_real; springs = .false.
     m = ''
     read(chunk, nml=probe, iostat=ios, iomsg=m)
     iomsg = trim(m)
-    p%name = name; p%x = x; p%y = y
+    p%name = name; p%x = x; p%y = y; p%springs = springs
   end subroutine parse_probe
 
   subroutine read_probe(text, g, ip, p, stat, msg)
@@ -790,7 +831,8 @@ contains
     character(len=line_len), allocatable :: chunk(:)
     character(len=:), allocatable :: iomsg, label
     label = '&probe #'//itoa(ip)//' (line '//itoa(text%groups(g)%first_line)//')'
-    call check_keys(text, g, [character(len=4) :: 'name', 'x', 'y'], label, stat, msg)
+    call check_keys(text, g, [character(len=8) :: 'name', 'x', 'y', 'springs'], label, stat, &
+                    msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_probe(chunk, p, stat, iomsg)
@@ -895,6 +937,11 @@ contains
       stat = 1
       msg = "&static is only for analysis = 'static', but &run has analysis = '"// &
             trim(cfg%run%analysis)//"'; remove &static or set analysis = 'static' in &run"
+      return
+    end if
+    if (cfg%material%nonlinear .and. cfg%geometry%cell /= 'paper') then
+      call bad('&geometry', 'cell', "'"//trim(cfg%geometry%cell)//"'", "cannot be used with "// &
+               "nonlinear springs (&material nonlinear = .true.): use cell = 'paper'", stat, msg)
       return
     end if
     tol = 1.0e-9_wp*max(cfg%geometry%length, cfg%geometry%height)

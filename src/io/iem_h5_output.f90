@@ -88,12 +88,21 @@ module iem_h5_output
     integer(HID_T), allocatable :: probe_u_id(:), probe_v_id(:)
     !> Group path of each probe, /history/probes/<name> (blank padded), for messages.
     character(len=:), allocatable :: probe_path(:)
+    !> Spring probes: strain and stress series (12 springs of a cell) and their paths.
+    integer(HID_T), allocatable :: spring_e_id(:), spring_s_id(:)
+    character(len=:), allocatable :: spring_path(:)
+    integer(i8) :: n_spring_samples = 0
+    !> Contiguous runs of this rank's cells (from write_mesh), for cell fields of frames.
+    integer(i8), allocatable :: cell_start(:), cell_len(:)
   contains
     procedure :: create => h5_output_create
     procedure :: write_mesh => h5_output_write_mesh
     procedure :: write_frame => h5_output_write_frame
     procedure :: write_history => h5_output_write_history
     procedure :: write_static_settings => h5_output_write_static_settings
+    procedure :: define_spring_probes => h5_output_define_spring_probes
+    procedure :: write_spring_history => h5_output_write_spring_history
+    procedure :: write_cell_field => h5_output_write_cell_field
     procedure :: close => h5_output_close
   end type h5_output_t
 
@@ -401,6 +410,8 @@ contains
     end if
 
     call gid_runs(cell_gids, cstart, clen)
+    this%cell_start = cstart
+    this%cell_len = clen
     gid = -1
     did = -1
     cell_fspace = -1
@@ -715,6 +726,168 @@ contains
     call close_space(this, mspace, stat, msg)
     if (stat == 0) this%n_samples = this%n_samples + nn
   end subroutine h5_output_write_history
+
+  !> Creates /history/springs/<name>/strain and /stress, (12, samples) each, for spring probes
+  !> (the 12 springs of one cell: edges 1-4, Poisson springs 1-4, shear springs 1-4), with the
+  !> cell's global index and the probe point as attributes; collective, same arguments on
+  !> every rank, after create and before the first write_spring_history.
+  subroutine h5_output_define_spring_probes(this, names, cell_gids, xy, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    character(len=*), intent(in) :: names(:)
+    integer(i8), intent(in) :: cell_gids(:)
+    real(wp), intent(in) :: xy(:, :)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(HID_T) :: gid, pgid
+    integer :: ierr, p
+    character(len=:), allocatable :: where
+    character(len=*), parameter :: labels = 'edge1 edge2 edge3 edge4 poisson1 poisson2 '// &
+      'poisson3 poisson4 shear1 shear2 shear3 shear4'
+
+    stat = 0
+    msg = ''
+    if (.not. this%is_open) then
+      stat = 1
+      msg = 'iem_h5_output: define_spring_probes on a file that is not open'
+      return
+    end if
+    if (allocated(this%spring_e_id)) deallocate(this%spring_e_id, this%spring_s_id)
+    if (allocated(this%spring_path)) deallocate(this%spring_path)
+    allocate(this%spring_e_id(size(names)), this%spring_s_id(size(names)))
+    this%spring_e_id = -1
+    this%spring_s_id = -1
+    allocate(character(len=len('/history/springs/') + len(names)) :: &
+      this%spring_path(size(names)))
+    this%n_spring_samples = 0
+    if (size(names) == 0) return
+    gid = -1
+    pgid = -1
+    work: block
+      call h5gcreate_f(this%file_id, '/history/springs', gid, ierr)
+      if (failed(this, ierr, 'h5gcreate_f', '/history/springs', stat, msg)) exit work
+      call put_attr(this, gid, '/history/springs', 'springs', stat, msg, text=labels)
+      call put_attr(this, gid, '/history/springs', 'stress_definition', stat, msg, &
+        text='spring modulus (Eq, Hq, Gq) times the normalised spring stress; strain: '// &
+        'edge strain, sum of the two edge strains at the corner, corner shear measure')
+      do p = 1, size(names)
+        this%spring_path(p) = '/history/springs/'//trim(names(p))
+        where = trim(this%spring_path(p))
+        call h5gcreate_f(gid, trim(names(p)), pgid, ierr)
+        if (failed(this, ierr, 'h5gcreate_f', where, stat, msg)) exit work
+        call put_attr(this, pgid, where, 'cell', stat, msg, lval=cell_gids(p))
+        call put_attr(this, pgid, where, 'x', stat, msg, rval=xy(1, p))
+        call put_attr(this, pgid, where, 'y', stat, msg, rval=xy(2, p))
+        call create_series(this, pgid, where//'/', 'strain', H5T_IEEE_F64LE, 12, &
+          this%spring_e_id(p), stat, msg)
+        call create_series(this, pgid, where//'/', 'stress', H5T_IEEE_F64LE, 12, &
+          this%spring_s_id(p), stat, msg)
+        if (stat /= 0) exit work
+        call h5gclose_f(pgid, ierr)
+        pgid = -1
+        if (failed(this, ierr, 'h5gclose_f', where, stat, msg)) exit work
+      end do
+    end block work
+    if (pgid >= 0) call h5gclose_f(pgid, ierr)
+    if (gid >= 0) call h5gclose_f(gid, ierr)
+  end subroutine h5_output_define_spring_probes
+
+  !> Appends n samples of the spring probes: strain and stress (12, n_spring_probes, n),
+  !> the same on every rank (rank 0 writes); collective.
+  subroutine h5_output_write_spring_history(this, n, strain, stress, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    integer, intent(in) :: n
+    real(wp), intent(in) :: strain(:, :, :), stress(:, :, :)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    real(wp), allocatable :: buf(:, :)
+    integer(HID_T) :: fspace, mspace
+    integer :: p, ierr
+
+    stat = 0
+    msg = ''
+    if (.not. allocated(this%spring_e_id) .or. n == 0) return
+    if (size(strain, 1) /= 12 .or. size(strain, 2) /= size(this%spring_e_id) .or. &
+        size(strain, 3) < n .or. any(shape(stress) /= shape(strain))) then
+      stat = 1
+      msg = 'iem_h5_output: write_spring_history: array shapes do not match the spring probes'
+      return
+    end if
+    allocate(buf(12, n))
+    fspace = -1
+    mspace = -1
+    work: block
+      do p = 1, size(this%spring_e_id)
+        call prepare_append(this, this%spring_e_id(p), trim(this%spring_path(p))//'/strain', &
+          12, this%n_spring_samples, int(n, i8), fspace, mspace, stat, msg)
+        if (stat /= 0) exit work
+        buf = strain(:, p, :n)
+        call h5dwrite_f(this%spring_e_id(p), this%real_mtype, buf, &
+          [12_HSIZE_T, int(n, HSIZE_T)], ierr, mspace, fspace, this%xfer_id)
+        if (failed(this, ierr, 'h5dwrite_f', trim(this%spring_path(p))//'/strain', stat, &
+          msg)) exit work
+        call close_space(this, fspace, stat, msg)
+        call close_space(this, mspace, stat, msg)
+        call prepare_append(this, this%spring_s_id(p), trim(this%spring_path(p))//'/stress', &
+          12, this%n_spring_samples, int(n, i8), fspace, mspace, stat, msg)
+        if (stat /= 0) exit work
+        buf = stress(:, p, :n)
+        call h5dwrite_f(this%spring_s_id(p), this%real_mtype, buf, &
+          [12_HSIZE_T, int(n, HSIZE_T)], ierr, mspace, fspace, this%xfer_id)
+        if (failed(this, ierr, 'h5dwrite_f', trim(this%spring_path(p))//'/stress', stat, &
+          msg)) exit work
+        call close_space(this, fspace, stat, msg)
+        call close_space(this, mspace, stat, msg)
+      end do
+    end block work
+    call close_space(this, fspace, stat, msg)
+    call close_space(this, mspace, stat, msg)
+    if (stat == 0) this%n_spring_samples = this%n_spring_samples + n
+  end subroutine h5_output_write_spring_history
+
+  !> Writes a cell field, values(n) for this rank's cells in the order given to write_mesh,
+  !> as /frames/<last frame>/<name> (n_cells values); collective, after write_frame.
+  subroutine h5_output_write_cell_field(this, name, values, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    character(len=*), intent(in) :: name
+    real(wp), intent(in) :: values(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: where, frame
+    integer(HID_T) :: gid, did, fspace, mspace
+    integer :: ierr
+
+    stat = 0
+    msg = ''
+    if (.not. this%is_open .or. this%n_frames == 0 .or. .not. allocated(this%cell_start)) then
+      stat = 1
+      msg = 'iem_h5_output: write_cell_field needs an open file with its mesh and a frame'
+      return
+    end if
+    frame = xdmf_frame_name(this%n_frames - 1)
+    where = '/frames/'//frame//'/'//name
+    gid = -1
+    did = -1
+    fspace = -1
+    mspace = -1
+    work: block
+      call h5gopen_f(this%frames_id, frame, gid, ierr)
+      if (failed(this, ierr, 'h5gopen_f', '/frames/'//frame, stat, msg)) exit work
+      call h5screate_simple_f(1, [int(this%n_cells, HSIZE_T)], fspace, ierr)
+      if (failed(this, ierr, 'h5screate_simple_f', where, stat, msg)) exit work
+      call select_runs(this, fspace, where, 0, this%cell_start, this%cell_len, stat, msg)
+      call make_mem_space(this, 0, size(values, kind=i8), where, mspace, stat, msg)
+      if (stat /= 0) exit work
+      call h5dcreate_f(gid, name, H5T_IEEE_F64LE, fspace, did, ierr, this%dcpl_id)
+      if (failed(this, ierr, 'h5dcreate_f', where, stat, msg)) exit work
+      call h5dwrite_f(did, this%real_mtype, values, [size(values, kind=HSIZE_T)], ierr, &
+        mspace, fspace, this%xfer_id)
+      if (failed(this, ierr, 'h5dwrite_f', where, stat, msg)) exit work
+    end block work
+    if (did >= 0) call h5dclose_f(did, ierr)
+    if (gid >= 0) call h5gclose_f(gid, ierr)
+    call close_space(this, fspace, stat, msg)
+    call close_space(this, mspace, stat, msg)
+  end subroutine h5_output_write_cell_field
 
   !> Writes the settings of a static run as attributes of /history/static; collective, the
   !> same values on every rank.
@@ -1206,6 +1379,15 @@ contains
         call close_dset(this, this%probe_v_id(k), trim(this%probe_path(k))//'/velocity', stat, &
           msg)
       end do
+    end if
+    if (allocated(this%spring_e_id)) then
+      do k = 1, size(this%spring_e_id)
+        call close_dset(this, this%spring_e_id(k), trim(this%spring_path(k))//'/strain', stat, &
+          msg)
+        call close_dset(this, this%spring_s_id(k), trim(this%spring_path(k))//'/stress', stat, &
+          msg)
+      end do
+      deallocate(this%spring_e_id, this%spring_s_id)
     end if
     if (this%frames_id >= 0) then
       call h5gclose_f(this%frames_id, ierr)

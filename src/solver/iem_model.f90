@@ -8,6 +8,7 @@ module iem_model
   use iem_node_sets, only: in_node_set, edge_weight
   use iem_spring_constants, only: cell_constants_t, cell_constants
   use iem_cell_kernel, only: cell_forces
+  use iem_nonlinear_springs, only: nonlinear_springs_t, reference_strains
   use iem_time_function, only: tf_value, tf_rate
   use iem_strings, only: itoa
   use iem_constants, only: pi
@@ -26,6 +27,9 @@ module iem_model
     real(wp) :: omega_cap = 0.0_wp
     !> State values per node: 4 (u, v), or 6 (u, v, w) with capped damping.
     integer :: n_state = 4
+    !> Nonlinear (Masing) springs: their laws and history; not allocated for elastic runs.
+    logical :: nonlinear = .false.
+    type(nonlinear_springs_t) :: nl
     !> Lumped mass of owned nodes.
     real(wp), allocatable :: mass(:)
     !> Prescribed degrees of freedom: owned node, component, bc index.
@@ -67,7 +71,7 @@ contains
     integer :: l, q, b, n, c, ld
     integer, allocatable :: ij(:, :)
     logical, allocatable :: taken(:, :)
-    real(wp) :: mcell, w
+    real(wp) :: mcell, w, er_pos(3), er_neg(3)
 
     this%grid = grid
     this%density = cfg%material%density
@@ -82,6 +86,16 @@ contains
       this%omega_cap = 2.0_wp*pi*cfg%damping%cap_frequency
       this%beta = capped_beta(cfg%damping%ratio, 2.0_wp*pi*cfg%damping%frequency, this%omega_cap)
       this%n_state = 6
+    end if
+    this%nonlinear = cfg%material%nonlinear
+    if (this%nonlinear) then
+      associate(mat => cfg%material)
+        call reference_strains(mat%young, mat%poisson, cfg%geometry%plane == 'strain', &
+                               mat%tensile_strength, mat%compressive_strength, &
+                               mat%shear_strength, er_pos, er_neg)
+        call this%nl%init(lat%n_cells, er_pos, er_neg, [this%k%ce, this%k%ch, this%k%cg], &
+                          mat%history_depth)
+      end associate
     end if
     mcell = 0.25_wp*this%density*grid%lx*grid%ly*grid%thickness
     allocate(this%mass(lat%n_owned))
@@ -218,22 +232,31 @@ contains
 
   !> Accelerations acc(2, n_owned) of the owned nodes for the state y(4, n_local) (halo
   !> columns up to date) at time t; also the local power of external forces (loads and
-  !> support reactions) and of damping, for the energy balance.
-  subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp)
+  !> support reactions) and of damping, for the energy balance. With nonlinear springs,
+  !> commit = .true. accepts y: the springs' history moves to it (default: trial only).
+  subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit)
     class(model_t), intent(inout) :: this
     type(local_lattice_t), intent(in) :: lat
     real(wp), intent(in) :: y(:, :)
     real(wp), intent(in) :: t
     real(wp), intent(out) :: acc(:, :)
     real(wp), intent(out) :: p_ext, p_damp
+    logical, intent(in), optional :: commit
     real(wp) :: f(2), r
     integer :: l, b, ld, comp, n, s
-    logical :: changed
+    logical :: changed, accept
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
-    call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                     this%energy, p_damp, this%n_state - 1)
+    if (this%nonlinear) then
+      accept = .false.
+      if (present(commit)) accept = commit
+      call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                       this%energy, p_damp, this%n_state - 1, this%nl, accept)
+    else
+      call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                       this%energy, p_damp, this%n_state - 1)
+    end if
     ! external loads: rebuilt only when a time function has changed
     changed = .false.
     do ld = 1, size(this%load_tf)

@@ -424,7 +424,9 @@ contains
     end if
     y(3:4, 1:n) = this%du_conv
     call halo%exchange(y)
-    call model%rate(lat, y, t, this%acc, p_ext, p_damp)
+    ! the converged state is accepted: nonlinear springs commit their history to it (the
+    ! relaxation iterations above never do)
+    call model%rate(lat, y, t, this%acc, p_ext, p_damp, commit=.true.)
     sums(1) = sums(1) + p_ext - reaction_inertia(model, this%free_dof, this%acc, y, n)
     res%work = 0.5_wp*sums(1)
     y(3:4, :) = 0.0_wp

@@ -17,6 +17,9 @@ module iem_simulation
   use iem_verlet, only: verlet_step
   use iem_stable_dt, only: cell_omega_max, rk4_stable_dt, verlet_stable_dt
   use iem_relaxation, only: relaxation_t, relax_result_t, relax_check_interval
+  use iem_cell_kernel, only: cell_strain_measures
+  use iem_nonlinear_springs, only: springs_per_cell, spring_kind, spring_strains
+  use iem_spring_constants, only: spring_moduli
   use iem_h5_output, only: h5_output_t
   use iem_build_info, only: iem_version
   use iem_constants, only: rk4_imag_limit
@@ -55,6 +58,16 @@ module iem_simulation
     integer :: n_buf = 0
     real(wp), allocatable :: h_time(:), h_energy(:, :), h_pu(:, :, :), h_pv(:, :, :)
     integer(i8), allocatable :: h_step(:)
+    !> Spring probes (probes with springs = .true.): probe index, global cell, local cell
+    !> when counted here (0 otherwise); buffered strains and stresses (12, n, samples).
+    integer, allocatable :: sp_probe(:), sp_local(:)
+    integer(i8), allocatable :: sp_cell(:)
+    real(wp), allocatable :: h_sp_e(:, :, :), h_sp_s(:, :, :)
+    !> Spring moduli (Eq, Hq, Gq): a spring's stress is its modulus times its normalised
+    !> stress (its strain, when elastic).
+    real(wp) :: moduli(3) = 0.0_wp
+    !> Nonlinear runs: the degree of nonlinearity of each counted cell, for frames.
+    real(wp), allocatable :: cell_degree(:)
     !> Static runs: load factor, iterations and relative residual of each buffered sample.
     real(wp), allocatable :: h_load(:), h_res(:)
     integer(i8), allocatable :: h_iter(:)
@@ -79,7 +92,7 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer(i8), allocatable :: n_selected(:)
-    integer :: k, np, nb, n_state
+    integer :: k, np, nb, n_state, nsp, ci, cj, l
     real(wp) :: m_corner
 
     this%cfg = cfg
@@ -164,11 +177,33 @@ contains
       this%probe_local(k) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k), 1)
     end do
 
+    ! spring probes: the cell that holds the point (the last cell on the far edges)
+    this%moduli = spring_moduli(cfg%material%young, cfg%material%poisson, &
+                                cfg%geometry%plane == 'strain')
+    nsp = count(cfg%probes(:)%springs)
+    allocate(this%sp_probe(nsp), this%sp_local(nsp), this%sp_cell(nsp))
+    nsp = 0
+    do k = 1, np
+      if (.not. cfg%probes(k)%springs) cycle
+      nsp = nsp + 1
+      this%sp_probe(nsp) = k
+      ci = min(max(int(cfg%probes(k)%x/this%grid%lx), 0), this%grid%nx - 1)
+      cj = min(max(int(cfg%probes(k)%y/this%grid%ly), 0), this%grid%ny - 1)
+      this%sp_cell(nsp) = int(ci, i8) + int(cj, i8)*this%grid%nx
+      this%sp_local(nsp) = 0
+      do l = 1, this%lat%n_cells
+        if (this%lat%cell_gid(l) == this%sp_cell(nsp) .and. this%lat%cell_counted(l)) &
+          this%sp_local(nsp) = l
+      end do
+    end do
+    allocate(this%h_sp_e(springs_per_cell, nsp, history_chunk))
+    allocate(this%h_sp_s(springs_per_cell, nsp, history_chunk))
+    if (this%model%nonlinear) allocate(this%cell_degree(this%lat%n_counted()))
     allocate(this%h_time(history_chunk), this%h_step(history_chunk))
     allocate(this%h_energy(n_energy, history_chunk))
     allocate(this%h_pu(2, np, history_chunk), this%h_pv(2, np, history_chunk))
     allocate(this%h_load(history_chunk), this%h_res(history_chunk), this%h_iter(history_chunk))
-    allocate(this%sample(4 + 4*np))
+    allocate(this%sample(4 + 4*np + 2*springs_per_cell*nsp))
     stat = 0
     msg = ''
   end subroutine simulation_setup
@@ -306,8 +341,8 @@ contains
     type(simulation_t), intent(inout) :: this
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    character(len=64), allocatable :: names(:)
-    real(wp), allocatable :: pxy(:, :), nxy(:, :)
+    character(len=64), allocatable :: names(:), sp_names(:)
+    real(wp), allocatable :: pxy(:, :), nxy(:, :), sp_xy(:, :)
     integer(i8), allocatable :: cells(:, :), cell_gids(:)
     real(wp), allocatable :: coords(:, :)
     integer :: k, l, nc
@@ -344,7 +379,17 @@ contains
     call this%out%write_mesh(coords, this%model%mass, cells, cell_gids, this%grid%nx, &
       this%grid%ny, this%grid%lx, this%grid%ly, this%grid%thickness, &
       trim(this%cfg%geometry%plane), stat, msg)
-    if (stat /= 0 .or. .not. this%static) return
+    if (stat /= 0) return
+    if (size(this%sp_probe) > 0) then
+      allocate(sp_names(size(this%sp_probe)), sp_xy(2, size(this%sp_probe)))
+      do k = 1, size(this%sp_probe)
+        sp_names(k) = this%cfg%probes(this%sp_probe(k))%name
+        sp_xy(:, k) = [this%cfg%probes(this%sp_probe(k))%x, this%cfg%probes(this%sp_probe(k))%y]
+      end do
+      call this%out%define_spring_probes(sp_names, this%sp_cell, sp_xy, stat, msg)
+      if (stat /= 0) return
+    end if
+    if (.not. this%static) return
     associate(s => this%cfg%static)
       call this%out%write_static_settings(s%load_steps, s%tolerance, s%max_iterations, &
         trim(s%method), trim(s%mass), relax_check_interval, stat, msg)
@@ -357,7 +402,7 @@ contains
     integer(i8), intent(in) :: k
     real(wp), intent(in) :: t
     logical, intent(out) :: diverged
-    integer :: p, np, b, stat
+    integer :: p, np, b, stat, o
     real(wp) :: ke, se, e, scale
 
     np = size(this%probe_gid)
@@ -370,6 +415,13 @@ contains
       if (this%probe_local(p) > 0) then
         this%sample(4 + 4*(p - 1) + 1:4 + 4*p) = this%st%y(1:4, this%probe_local(p))
       end if
+    end do
+    o = 4 + 4*np
+    do p = 1, size(this%sp_probe)
+      if (this%sp_local(p) > 0) call spring_sample(this, this%sp_local(p), &
+        this%sample(o + 1:o + springs_per_cell), &
+        this%sample(o + springs_per_cell + 1:o + 2*springs_per_cell))
+      o = o + 2*springs_per_cell
     end do
     call MPI_Allreduce(MPI_IN_PLACE, this%sample, size(this%sample), mpi_wp(), MPI_SUM, this%comm)
     diverged = .not. all(ieee_is_finite(this%sample))
@@ -397,7 +449,58 @@ contains
       this%h_pu(:, p, b) = this%sample(4 + 4*(p - 1) + 1:4 + 4*(p - 1) + 2)
       this%h_pv(:, p, b) = this%sample(4 + 4*(p - 1) + 3:4 + 4*p)
     end do
+    o = 4 + 4*np
+    do p = 1, size(this%sp_probe)
+      this%h_sp_e(:, p, b) = this%sample(o + 1:o + springs_per_cell)
+      this%h_sp_s(:, p, b) = this%sample(o + springs_per_cell + 1:o + 2*springs_per_cell)
+      o = o + 2*springs_per_cell
+    end do
   end subroutine record_sample
+
+  !> Degree of nonlinearity of each counted cell at the committed state: the smallest secant
+  !> over initial stiffness of its 12 springs (1: elastic; towards 0: far into the nonlinear
+  !> range). Each spring's secant psi/e is clipped to [0, 1] (after a reversal the stress can
+  !> pass zero before the strain does); a spring at zero strain counts as 1.
+  subroutine nonlinearity_degree(this)
+    type(simulation_t), intent(inout) :: this
+    integer :: c, k, j, i
+    real(wp) :: d, e
+    k = 0
+    do c = 1, this%lat%n_cells
+      if (.not. this%lat%cell_counted(c)) cycle
+      k = k + 1
+      d = 1.0_wp
+      do j = 1, springs_per_cell
+        i = springs_per_cell*(c - 1) + j
+        e = this%model%nl%state%strain(i)
+        if (e /= 0.0_wp) d = min(d, max(0.0_wp, min(1.0_wp, this%model%nl%state%stress(i)/e)))
+      end do
+      this%cell_degree(k) = d
+    end do
+  end subroutine nonlinearity_degree
+
+  !> Strains and stresses of the 12 springs of local cell c at the current state (committed:
+  !> samples are taken at accepted states).
+  subroutine spring_sample(this, c, strain, stress)
+    type(simulation_t), intent(in) :: this
+    integer, intent(in) :: c
+    real(wp), intent(out) :: strain(springs_per_cell), stress(springs_per_cell)
+    real(wp) :: u(2, 4), ep(4), sh(4)
+    integer :: q, j
+    do q = 1, 4
+      u(:, q) = this%st%y(1:2, this%lat%cell_nodes(q, c))
+    end do
+    call cell_strain_measures(this%model%k, u, ep, sh)
+    strain = spring_strains(ep, sh)
+    do j = 1, springs_per_cell
+      if (this%model%nonlinear) then
+        stress(j) = this%moduli(spring_kind(j))* &
+                    this%model%nl%state%stress(springs_per_cell*(c - 1) + j)
+      else
+        stress(j) = this%moduli(spring_kind(j))*strain(j)
+      end if
+    end do
+  end subroutine spring_sample
 
   !> Write the buffered history samples to the file.
   subroutine flush_history(this, stat)
@@ -416,6 +519,8 @@ contains
       call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
         this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg)
     end if
+    if (stat == 0 .and. size(this%sp_probe) > 0) call this%out%write_spring_history(n, &
+      this%h_sp_e(:, :, 1:n), this%h_sp_s(:, :, 1:n), stat, msg)
     this%n_buf = 0
   end subroutine flush_history
 
@@ -429,6 +534,9 @@ contains
     n = this%lat%n_owned
     ! the sections are copied to contiguous temporaries at output time only
     call this%out%write_frame(k, t, this%st%y(1:2, 1:n), this%st%y(3:4, 1:n), stat, msg)
+    if (stat /= 0 .or. .not. this%model%nonlinear) return
+    call nonlinearity_degree(this)
+    call this%out%write_cell_field('nonlinearity', this%cell_degree, stat, msg)
   end subroutine write_frame
 
   !> The load steps of a static run: relax to equilibrium at each pseudo-time t_k = k t_end/N
@@ -481,7 +589,7 @@ contains
         call flush_history(this, stat2)
         return
       end if
-      ! nonlinear springs: the converged state is where spring history is committed
+      ! nonlinear springs have committed their history at the converged state (relax%step)
       this%w_ext = this%w_ext + res%work
       call record_sample(this, k, t, diverged)
       if (diverged) then

@@ -56,7 +56,8 @@ contains
 
   !> Exchange the halo of y and evaluate the rates at time t into st%acc (with the powers
   !> p_ext1, p_damp1): the first stage of a step, kept apart so the caller can record the
-  !> energies and output of the state y, which this evaluation provides.
+  !> energies and output of the state y, which this evaluation provides. y is an accepted
+  !> state: nonlinear springs commit their history to it.
   subroutine state_rate(model, lat, halo, st, t)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
@@ -67,7 +68,7 @@ contains
     call halo%exchange(st%y)
     call timer_stop(t_halo)
     call timer_start(t_force)
-    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1)
+    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1, commit=.true.)
     call timer_stop(t_force)
   end subroutine state_rate
 end module iem_state

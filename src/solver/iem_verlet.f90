@@ -50,7 +50,8 @@ contains
     call halo%exchange(st%y)
     call timer_stop(t_halo)
     call timer_start(t_force)
-    call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp)
+    ! the end of the step is accepted: nonlinear springs commit their history to it
+    call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true.)
     call timer_stop(t_force)
     call timer_start(t_update)
     ! the powers are those of the half-step velocity: exact work of constant forces

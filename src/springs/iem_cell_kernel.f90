@@ -11,9 +11,12 @@
 module iem_cell_kernel
   use iem_kinds, only: wp
   use iem_spring_constants, only: cell_constants_t, law_bending
+  use iem_nonlinear_springs, only: nonlinear_springs_t, springs_per_cell, spring_kind, &
+                                   spring_strains
+  use iem_masing, only: masing_trial, masing_commit
   implicit none
   private
-  public :: cell_energy, cell_force, cell_forces
+  public :: cell_energy, cell_force, cell_forces, cell_strain_measures
 
   !> Cells per chunk of the vectorised kernel: the chunk's work arrays stay in L1 cache.
   integer, parameter :: chunk = 64
@@ -28,6 +31,30 @@ contains
     v = 0.0_wp
     call cell_force(k, u, v, 0.0_wp, f, en, p)
   end function cell_energy
+
+  !> Edge strains ep(4) (bottom, right, top, left) and corner shear measures s(4) (SW, SE,
+  !> NE, NW) of one cell for corner displacements u(2, 4), as the force kernel measures them.
+  pure subroutine cell_strain_measures(k, u, ep, s)
+    type(cell_constants_t), intent(in) :: k
+    real(wp), intent(in) :: u(2, 4)
+    real(wp), intent(out) :: ep(4), s(4)
+    real(wp) :: e(2, 4), len(4)
+    integer :: q
+    e(:, 1) = [k%lx, 0.0_wp] + u(:, 2) - u(:, 1)
+    e(:, 2) = [0.0_wp, k%ly] + u(:, 3) - u(:, 2)
+    e(:, 3) = [-k%lx, 0.0_wp] + u(:, 4) - u(:, 3)
+    e(:, 4) = [0.0_wp, -k%ly] + u(:, 1) - u(:, 4)
+    do q = 1, 4
+      len(q) = sqrt(sum(e(:, q)**2))
+      ep(q) = len(q)*k%il0(q) - 1.0_wp
+      e(:, q) = e(:, q)/len(q)
+    end do
+    ! corner q joins edge q and edge q-1
+    s(1) = -dot_product(e(:, 1), e(:, 4))
+    s(2) = -dot_product(e(:, 2), e(:, 1))
+    s(3) = -dot_product(e(:, 3), e(:, 2))
+    s(4) = -dot_product(e(:, 4), e(:, 3))
+  end subroutine cell_strain_measures
 
   !> Internal force f(2, 4) = dPi/dx of one cell, plus the stiffness-proportional damping force
   !> beta*K*v when beta > 0; returns the strain energy and the damping power f_damp . v.
@@ -51,8 +78,13 @@ contains
   !> gathered into small unit-stride arrays, so the compiler vectorises the kernel.
   !> The stiffness damping acts on the velocities in rows damp_row:damp_row+1 of y (default 3,
   !> the velocities themselves; 5 for the filtered velocities of capped damping); the damping
-  !> power is always taken with the velocities (rows 3:4).
-  pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row)
+  !> power is always taken with the velocities (rows 3:4). With nl (nonlinear springs of the
+  !> paper's cell, one set per column of cell_nodes) the springs follow their Masing law from
+  !> their committed state; with commit = .true. this state y is accepted: every spring's
+  !> history moves to it. The energy is then the work done on the springs (stored plus
+  !> dissipated), and stiffness damping uses the initial (elastic) stiffness.
+  pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
+                              nl, commit)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: cell_nodes(:, :)
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
@@ -60,12 +92,16 @@ contains
     real(wp), intent(in) :: y(:, :), beta
     real(wp), intent(out) :: f(:, :), energy, damp_power
     integer, intent(in), optional :: damp_row
+    type(nonlinear_springs_t), intent(inout), optional :: nl
+    logical, intent(in), optional :: commit
     real(wp) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4), px(chunk, 4), py(chunk, 4)
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
     integer :: c0, m, c, q, nc, node, row
-    logical :: damped, filtered
+    logical :: damped, filtered, accept
 
     nc = size(cell_nodes, 2)
+    accept = .false.
+    if (present(commit)) accept = commit
     damped = beta > 0.0_wp
     row = 3
     if (present(damp_row)) row = damp_row
@@ -101,7 +137,12 @@ contains
           end do
         end do
       end if
-      call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, pw)
+      if (present(nl)) then
+        call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, pw, &
+                          nl, c0, accept)
+      else
+        call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, pw)
+      end if
       do c = 1, m
         do q = 1, 4
           node = cell_nodes(q, c0 + c - 1)
@@ -120,7 +161,7 @@ contains
   !> first), as branch-free loops the compiler vectorises: geometry and strain measures; the
   !> cell law; damping (only when damped); corner forces.
   pure subroutine chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, &
-                               en, pw)
+                               en, pw, nl, c_first, accept)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     logical, intent(in) :: damped, filtered
@@ -128,6 +169,10 @@ contains
     real(wp), intent(in) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4)
     real(wp), intent(in) :: px(chunk, 4), py(chunk, 4)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
+    !> Nonlinear springs, the index of the chunk's first cell, and whether to commit.
+    type(nonlinear_springs_t), intent(inout), optional :: nl
+    integer, intent(in), optional :: c_first
+    logical, intent(in), optional :: accept
     ! per cell: unit edge vectors e, shear gradients a (d s/d a) and b (d s/d b), strains ep
     ! and shear measures s, generalised stresses g (edges) and t (corners), and the rates
     real(wp) :: ex(chunk, 4), ey(chunk, 4), ax(chunk, 4), ay(chunk, 4)
@@ -180,11 +225,15 @@ contains
       bx(c, :) = [(e1x + s1*e4x)*i4, (e2x + s2*e1x)*i1, (e3x + s3*e2x)*i2, (e4x + s4*e3x)*i3]
       by(c, :) = [(e1y + s1*e4y)*i4, (e2y + s2*e1y)*i1, (e3y + s3*e2y)*i2, (e4y + s4*e3y)*i3]
     end do
-    call cell_law(k, m, ep, s, g, t)
-    do c = 1, m
-      en(c) = 0.5_wp*sum(g(c, :)*ep(c, :) + t(c, :)*s(c, :))
-      pw(c) = 0.0_wp
-    end do
+    if (present(nl)) then
+      call nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en)
+    else
+      call cell_law(k, m, ep, s, g, t)
+      do c = 1, m
+        en(c) = 0.5_wp*sum(g(c, :)*ep(c, :) + t(c, :)*s(c, :))
+      end do
+    end if
+    pw(1:m) = 0.0_wp
     if (damped) then
       call strain_rates(vx, vy, d, r)
       call cell_law(k, m, d, r, gd, td)
@@ -244,6 +293,55 @@ contains
       end do
     end subroutine strain_rates
   end subroutine chunk_forces
+
+  !> The nonlinear law of the paper's cell on a chunk whose first cell is c_first: each
+  !> spring's normalised stress psi from its committed history at its current strain (and,
+  !> with accept, the history moved there), the generalised stresses g = 2 ce psi_edge +
+  !> 2 ch (psi_Poisson at both ends of the edge), t = 2 cg psi_shear, and the work done on the
+  !> cell's springs up to this state (trapezoidal increments from the committed state).
+  pure subroutine nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en)
+    type(nonlinear_springs_t), intent(inout) :: nl
+    integer, intent(in) :: c_first, m
+    real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
+    logical, intent(in) :: accept
+    real(wp), intent(out) :: g(chunk, 4), t(chunk, 4), en(chunk)
+    real(wp) :: e(springs_per_cell), psi(springs_per_cell), tan, dw, e_old, psi_old, er
+    integer :: c, j, i, kind
+    do c = 1, m
+      e = spring_strains(ep(c, :), s(c, :))
+      en(c) = 0.0_wp
+      do j = 1, springs_per_cell
+        i = springs_per_cell*(c_first + c - 2) + j
+        kind = spring_kind(j)
+        associate(st => nl%state)
+          e_old = st%strain(i)
+          psi_old = st%stress(i)
+          if (st%count(i) == 0 .and. (st%dir(i) == 0 .or. &
+              real(st%dir(i), wp)*(e(j) - e_old) > 0.0_wp)) then
+            ! fast path: a spring on its skeleton that keeps going the same way
+            er = merge(nl%er_pos(kind), nl%er_neg(kind), e(j) >= 0.0_wp)
+            psi(j) = e(j)/(1.0_wp + abs(e(j))/er)
+          else
+            call masing_trial(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), st%strain(i), &
+                              st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
+                              st%s_rev(:, i), psi(j), tan)
+          end if
+          dw = 0.5_wp*nl%c2(kind)*(psi_old + psi(j))*(e(j) - e_old)
+          if (accept) then
+            call masing_commit(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), st%strain(i), &
+                               st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
+                               st%s_rev(:, i), st%e_max_pos(i), st%e_max_neg(i))
+            nl%work(i) = nl%work(i) + dw
+            en(c) = en(c) + nl%work(i)
+          else
+            en(c) = en(c) + nl%work(i) + dw
+          end if
+        end associate
+      end do
+      g(c, :) = nl%c2(1)*psi(1:4) + nl%c2(2)*(psi(5:8) + cshift(psi(5:8), 1))
+      t(c, :) = nl%c2(3)*psi(9:12)
+    end do
+  end subroutine nonlinear_law
 
   !> The elastic cell law on a chunk: generalised stresses g = dPi/d eps (edges) and
   !> t = dPi/d s (corners) from edge strains ep and corner shear measures s.
