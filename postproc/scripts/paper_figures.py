@@ -76,6 +76,12 @@ def fig_static(path: Path, scene: str, out: Path) -> None:
                           for k in frames(h)])
     p = lf * p_full
     ref = np.array([fibre(scene, pi) for pi in p])
+    fine = path.with_name(path.stem + "_fine.h5")
+    fine_d = None
+    if fine.exists():
+        with h5py.File(fine, "r") as h:
+            fine_d = -h["history/probes/tip/displacement"][:, 1]
+            fine_p = h["history/static/load_factor"][:] * total_load(h)
     if scene == "cantilever":
         elastic = cantilever_tip_deflection_timoshenko(1.0, L, E, NU, H, T) * p
     else:
@@ -83,6 +89,8 @@ def fig_static(path: Path, scene: str, out: Path) -> None:
     lattice_elastic = d[1] / p[1] * p  # the lattice's own initial stiffness (first step)
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     ax.plot(d * 1e3, p / 1e3, "o-", ms=3, label="iem, nonlinear springs (80 x 8)")
+    if fine_d is not None:
+        ax.plot(fine_d * 1e3, fine_p / 1e3, "s-", ms=3, label="iem, nonlinear springs (160 x 16)")
     ax.plot(ref * 1e3, p / 1e3, "k--", label="fibre-section beam, same hyperbolic law")
     ax.plot(elastic * 1e3, p / 1e3, ":", color="gray", label="elastic (Timoshenko)")
     ax.plot(lattice_elastic * 1e3, p / 1e3, ":", color="C0", alpha=0.6,
@@ -105,6 +113,14 @@ def fig_static(path: Path, scene: str, out: Path) -> None:
                   f"  {d[i] / lattice_elastic[i]:6.3f}")
     print(f"  last: {p[-1] / 1e3:6.3f}  {d[-1] * 1e3:8.4f}  {ref[-1] * 1e3:8.4f}  "
           f"{d[-1] / ref[-1]:6.3f}  {d[-1] / lattice_elastic[-1]:6.3f}")
+    if fine_d is not None:
+        print("  160 x 16: P (kN), iem (mm), iem/fibre")
+        for i in range(0, len(fine_p), max(1, len(fine_p) // 6)):
+            if fine_p[i] > 0:
+                r = fibre(scene, fine_p[i])
+                print(f"  {fine_p[i] / 1e3:6.3f}  {fine_d[i] * 1e3:8.4f}  {fine_d[i] / r:6.3f}")
+        r = fibre(scene, fine_p[-1])
+        print(f"  last: {fine_p[-1] / 1e3:6.3f}  {fine_d[-1] * 1e3:8.4f}  {fine_d[-1] / r:6.3f}")
 
 
 def fig_dynamic(path: Path, static_path: Path | None, out: Path) -> None:
@@ -149,9 +165,20 @@ def fig_dynamic(path: Path, static_path: Path | None, out: Path) -> None:
     ax.set_xlabel("spring strain (1e-3)")
     ax.set_ylabel("spring stress (MPa)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="lower right")
     ax.set_title("Fig. 14 analogue: stress-strain loops closing as the motion decays", fontsize=10)
     fig.tight_layout()
+    # inset: the loops after the first peak, coloured by time, with the stress relative to
+    # the chord of each loop removed (s - Eq e) so that their width shows
+    after = np.arange(len(t)) >= int(np.argmax(e[:, j]))
+    ins = ax.inset_axes([0.12, 0.12, 0.42, 0.42])
+    sc = ins.scatter(e[after, j] * 1e3, (s[after, j] - eq * e[after, j]) / 1e6, c=t[after] * 1e3,
+                     s=1.5, cmap="viridis")
+    ins.set_title("after the first peak: s - Eq e (MPa)", fontsize=7)
+    ins.tick_params(labelsize=6)
+    cb = fig.colorbar(sc, ax=ins, fraction=0.05, pad=0.02)
+    cb.ax.tick_params(labelsize=6)
+    cb.set_label("t (ms)", fontsize=6)
     fig.savefig(out / "fig14_spring_loops.png", dpi=130)
     rev = np.sum(np.diff(np.sign(np.diff(e[:, j]))) != 0)
     print(f"Fig. 14: strain range {e[:, j].min():.3e} .. {e[:, j].max():.3e}, stress max "

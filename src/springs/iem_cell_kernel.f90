@@ -316,8 +316,14 @@ contains
         associate(st => nl%state)
           e_old = st%strain(i)
           psi_old = st%stress(i)
-          if (st%count(i) == 0 .and. (st%dir(i) == 0 .or. &
-              real(st%dir(i), wp)*(e(j) - e_old) > 0.0_wp)) then
+          if (accept) then
+            ! the committed stress is bit for bit the trial stress at the same strain
+            call masing_commit(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), st%strain(i), &
+                               st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
+                               st%s_rev(:, i), st%e_max_pos(i), st%e_max_neg(i))
+            psi(j) = st%stress(i)
+          else if (st%count(i) == 0 .and. (st%dir(i) == 0 .or. &
+                   real(st%dir(i), wp)*(e(j) - e_old) > 0.0_wp)) then
             ! fast path: a spring on its skeleton that keeps going the same way
             er = merge(nl%er_pos(kind), nl%er_neg(kind), e(j) >= 0.0_wp)
             psi(j) = e(j)/(1.0_wp + abs(e(j))/er)
@@ -328,9 +334,6 @@ contains
           end if
           dw = 0.5_wp*nl%c2(kind)*(psi_old + psi(j))*(e(j) - e_old)
           if (accept) then
-            call masing_commit(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), st%strain(i), &
-                               st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
-                               st%s_rev(:, i), st%e_max_pos(i), st%e_max_neg(i))
             nl%work(i) = nl%work(i) + dw
             en(c) = en(c) + nl%work(i)
           else
