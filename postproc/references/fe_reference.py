@@ -25,14 +25,23 @@ SuperLU factor reused from the static solve).  Meshes: tensor-product grids with
 element size H = h/ny, graded algebraically (x = a (i/n)^gamma, a = h/2; gamma = 2 for the cantilever, 3 for three-point bending) towards
 the singular points, refined by halving H; a uniform sequence is computed for comparison.
 
+Plane strain (``--plane strain --nu NU``): the cantilever tip deflection ``uy_tip`` only,
+same geometry and load, with lambda = E nu / ((1 + nu)(1 - 2 nu)), mu = E / (2 (1 + nu));
+the result is merged into the output file under ``cantilever_plane_strain`` -> ``nu_NU``
+(the other keys of an existing file are kept as they are).  ``--variant sri`` integrates the
+lambda (volumetric) term with 2x2 Gauss instead of 3x3 (selective reduced integration, a
+check on volumetric locking near nu = 0.5).
+
 Usage::
 
     python postproc/references/fe_reference.py [--out FILE] [--quick]
+    python postproc/references/fe_reference.py --plane strain --nu 0.49 [--variant full|sri] [--out FILE] [--quick]
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import platform
@@ -49,6 +58,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 import skfem
 from skfem import Basis, BilinearForm, ElementQuad2, ElementVector, FacetBasis, LinearForm, MeshQuad, asm
+from skfem.helpers import ddot, div, sym_grad
 from skfem.models.elasticity import linear_elasticity, plane_stress
 
 HERE = Path(__file__).resolve().parent
@@ -58,6 +68,7 @@ from iem_post.references import ISSUE3, beam_references  # noqa: E402
 E, NU, RHO, L, H_DEPTH, T, P = (ISSUE3[k] for k in ("E", "nu", "rho", "L", "h", "t", "P"))
 LAM, MU = plane_stress(E, NU)
 INTORDER = 4  # 3x3 Gauss: exact for Quad2 stiffness and mass on rectangles
+INTORDER_REDUCED = 3  # 2x2 Gauss: the volumetric term of the "sri" variant (plane strain only)
 GRADE_ZONE = H_DEPTH / 2  # a: length of the graded zone at a singular point
 # grading exponents: the clamped corners (stress ~ r^-0.25) need less than the point
 # forces (u ~ log r); gamma = 2 gives order ~3 for the cantilever, while three-point bending
@@ -65,6 +76,11 @@ GRADE_ZONE = H_DEPTH / 2  # a: length of the graded zone at a singular point
 # reaches round-off at ny = 32 (elements of 5e-7 m with aspect ratio 7000).
 GAMMA = {"cantilever": 2.0, "three_point_bending": 3.0}
 TOL = 1e-5  # convergence criterion on the relative change between levels
+# plane strain (--plane strain): the cantilever only; a mesh sequence one level longer
+# than plane stress, since near nu = 0.5 the constant of the Q2 error grows (mild locking)
+PLANE_STRAIN_NYS_GRADED = [2, 4, 8, 16, 32, 64]
+PLANE_STRAIN_NYS_UNIFORM = [2, 4, 8, 16, 32, 64]
+PLANE_STRAIN_TOL = 1e-4  # near nu = 0.5 the last levels change by 1e-5 (round-off grows with lambda/mu)
 DEFAULT_OUT = HERE.parent / "iem_post" / "data" / "fe_references.json"
 
 
@@ -112,10 +128,35 @@ def _mass(u, v, w):
     return RHO * T * (u[0] * v[0] + u[1] * v[1])
 
 
-class Model:
-    """Quad2 plane-stress model on the tensor grid ``xs x ys``."""
+def plane_strain(E: float, nu: float) -> tuple[float, float]:
+    """Lame parameters of the 2D plane-strain constitutive matrix."""
+    return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
 
-    def __init__(self, xs: np.ndarray, ys: np.ndarray) -> None:
+
+def _shear_form(mu: float) -> BilinearForm:
+    @BilinearForm
+    def form(u, v, w):
+        return 2.0 * mu * ddot(sym_grad(u), sym_grad(v))
+
+    return form
+
+
+def _volumetric_form(lam: float) -> BilinearForm:
+    @BilinearForm
+    def form(u, v, w):
+        return lam * div(u) * div(v)
+
+    return form
+
+
+class Model:
+    """Quad2 model on the tensor grid ``xs x ys``: plane stress by default; ``lam, mu`` are
+    the 2D Lame parameters of the constitutive matrix.  ``variant = "sri"`` integrates the
+    lambda term with 2x2 Gauss (selective reduced integration)."""
+
+    def __init__(
+        self, xs: np.ndarray, ys: np.ndarray, lam: float = LAM, mu: float = MU, variant: str = "full"
+    ) -> None:
         self.xs, self.ys = xs, ys
         self.mesh = MeshQuad.init_tensor(xs, ys)
         self.basis = Basis(self.mesh, ElementVector(ElementQuad2()), intorder=INTORDER)
@@ -123,7 +164,13 @@ class Model:
         self.comp = np.zeros(b.N, dtype=int)
         for dofs in (b.nodal_dofs, b.facet_dofs, b.interior_dofs):
             self.comp[dofs[1]] = 1
-        self.K = asm(linear_elasticity(LAM, MU), b) * T
+        if variant == "full":
+            self.K = asm(linear_elasticity(lam, mu), b) * T
+        elif variant == "sri":
+            reduced = Basis(self.mesh, b.elem, intorder=INTORDER_REDUCED)
+            self.K = (asm(_shear_form(mu), b) + asm(_volumetric_form(lam), reduced)) * T
+        else:
+            raise ValueError(f"unknown variant {variant!r}")
         self._M = None
 
     @property
@@ -228,11 +275,19 @@ def elimination(N: int, constraints: list[np.ndarray]) -> sp.csr_matrix:
 # ---------------------------------------------------------------------------
 
 
-def cantilever(ny: int, gamma: float, check: bool = False) -> dict:
+def cantilever(
+    ny: int,
+    gamma: float,
+    check: bool = False,
+    lam: float = LAM,
+    mu: float = MU,
+    variant: str = "full",
+    frequency: bool = True,
+) -> dict:
     base = H_DEPTH / ny
     xs = graded_coords(L, base, [0.0], GRADE_ZONE, gamma)
     ys = graded_coords(H_DEPTH, base, [0.0, H_DEPTH], GRADE_ZONE, gamma)
-    m = Model(xs, ys)
+    m = Model(xs, ys, lam, mu, variant)
     if check:
         m.facet_basis_check(L)
     # uniform shear traction P/(h t) in -y on x = L, times thickness t
@@ -249,16 +304,18 @@ def cantilever(ny: int, gamma: float, check: bool = False) -> dict:
     u[free] = x1
     u0 = np.zeros(m.basis.N)
     u0[free] = x0
-    f, _ = lowest_frequencies(Kc, m.M[free][:, free], lu, k=2)
-    return {
+    out = {
         "ny": ny,
         "elements": m.n_elements,
         "dofs": int(m.basis.N),
         "h_min": float(min(np.diff(xs).min(), np.diff(ys).min())),
         "uy_tip": float(u[tip]),
         "uy_tip_roundoff": float(abs(u[tip] - u0[tip])),
-        "f1": float(f[0]),
     }
+    if frequency:
+        f, _ = lowest_frequencies(Kc, m.M[free][:, free], lu, k=2)
+        out["f1"] = float(f[0])
+    return out
 
 
 def three_point_bending(ny: int, gamma: float, check: bool = False) -> dict:
@@ -331,7 +388,9 @@ def richardson(v: list[float]) -> tuple[float, float]:
     return v2 + d2 / (2.0**p - 1.0), p
 
 
-def converged_entry(values: list[float], levels: list[dict], key: str, independent: float | None) -> dict:
+def converged_entry(
+    values: list[float], levels: list[dict], key: str, independent: float | None, tol: float = TOL
+) -> dict:
     """Extrapolated value and error estimate of a converging quantity.
 
     The estimate is the largest of: the change of the extrapolated value over the last
@@ -342,7 +401,7 @@ def converged_entry(values: list[float], levels: list[dict], key: str, independe
     of 1e-5..1e-7 m with aspect ratios of hundreds to thousands, and a bending energy is a
     small difference of large stiffness terms."""
     rel_changes = [abs(b - a) / abs(b) for a, b in zip(values[:-1], values[1:])]
-    met = next((levels[i + 1]["ny"] for i, r in enumerate(rel_changes) if r < TOL), None)
+    met = next((levels[i + 1]["ny"] for i, r in enumerate(rel_changes) if r < tol), None)
     r_last, p_last = richardson(values)
     if len(values) >= 4:
         r_prev, p_prev = richardson(values[:-1])
@@ -369,9 +428,9 @@ def converged_entry(values: list[float], levels: list[dict], key: str, independe
         "observed_order": p_last,
         "observed_order_previous": p_prev,
         "last_rel_change": rel_changes[-1],
-        "criterion": f"relative change between successive levels < {TOL:g}",
+        "criterion": f"relative change between successive levels < {tol:g}",
         "criterion_met_at_ny": met,
-        "converged": met is not None and rel_changes[-1] < TOL,
+        "converged": met is not None and rel_changes[-1] < tol,
     }
 
 
@@ -407,6 +466,9 @@ DEFINITIONS = {
         "uy_tip": ("m", "u_y at (L, h/2), the mid-depth point of the loaded face"),
         "f1": ("Hz", "first natural frequency of the clamped body (no load)"),
     },
+    "cantilever_plane_strain": {
+        "uy_tip": ("m", "u_y at (L, h/2), the mid-depth point of the loaded face (plane strain)"),
+    },
     "three_point_bending": {
         "d_mid": (
             "m",
@@ -433,7 +495,7 @@ DEFINITIONS = {
 DIVERGENT = {"uy_mid_raw", "f1_point_supports"}
 
 
-def analyse(scene: str, graded: list[dict], uniform: list[dict], gamma: float) -> dict:
+def analyse(scene: str, graded: list[dict], uniform: list[dict], gamma: float, tol: float = TOL) -> dict:
     out = {}
     for key, (unit, definition) in DEFINITIONS[scene].items():
         seq = [
@@ -468,7 +530,7 @@ def analyse(scene: str, graded: list[dict], uniform: list[dict], gamma: float) -
             r_uniform = p_uniform = None
             if len(uniform) >= 3:
                 r_uniform, p_uniform = richardson([lev[key] for lev in uniform])
-            entry |= converged_entry(vals, graded, key, r_uniform)
+            entry |= converged_entry(vals, graded, key, r_uniform, tol)
             entry["uniform_extrapolated"] = r_uniform
             entry["uniform_observed_order"] = p_uniform
         entry["sequence"] = seq
@@ -489,6 +551,100 @@ def _finite(obj):
     return obj
 
 
+def timoshenko_plane_strain(nu: float, kappa: float = 5.0 / 6.0) -> dict:
+    """Timoshenko tip deflection of the cantilever in plane strain (magnitudes):
+    P L^3 / (3 E' I) + P L / (kappa G A), E' = E / (1 - nu^2), G = E / (2 (1 + nu))."""
+    A, I = T * H_DEPTH, T * H_DEPTH**3 / 12.0
+    E_prime, G = E / (1.0 - nu**2), E / (2.0 * (1.0 + nu))
+    bending = P * L**3 / (3.0 * E_prime * I)
+    return {
+        "E_prime": E_prime,
+        "G": G,
+        "kappa": kappa,
+        "deflection_eb": bending,
+        "deflection_timoshenko": bending + P * L / (kappa * G * A),
+    }
+
+
+def plane_strain_main(args: argparse.Namespace) -> int:
+    """The plane-strain cantilever (``uy_tip``) for one Poisson ratio, merged into ``args.out``
+    under ``cantilever_plane_strain`` -> ``nu_NU``; every other key of the file is kept."""
+    nu = args.nu
+    if not 0.0 <= nu < 0.5:
+        raise SystemExit("--nu must lie in [0, 0.5)")
+    lam, mu = plane_strain(E, nu)
+    gamma = GAMMA["cantilever"] if args.gamma is None else args.gamma
+    if args.quick:
+        nys_graded, nys_uniform = [2, 4, 8], [2, 4, 8]
+    else:
+        nys_graded, nys_uniform = PLANE_STRAIN_NYS_GRADED, PLANE_STRAIN_NYS_UNIFORM
+    fun = functools.partial(cantilever, lam=lam, mu=mu, variant=args.variant, frequency=False)
+    t_start = time.time()
+    print(f"cantilever, plane strain, nu = {nu:g}, variant {args.variant}:", flush=True)
+    graded = run_sequence(fun, nys_graded, gamma, "graded ")
+    uniform = run_sequence(fun, nys_uniform, 1.0, "uniform")
+    entry = analyse("cantilever_plane_strain", graded, uniform, gamma, PLANE_STRAIN_TOL)["uy_tip"]
+    beam = timoshenko_plane_strain(nu)
+    command = "postproc/references/fe_reference.py --plane strain --nu " + f"{nu:g}"
+    if args.variant != "full":
+        command += f" --variant {args.variant}"
+    if args.quick:
+        command += " --quick"
+    entry = {
+        "nu": nu,
+        "lambda": lam,
+        "mu": mu,
+        "variant": args.variant,
+        **entry,
+        "beam_theory": beam,
+        "rel_diff_to_timoshenko": (-entry["value"] - beam["deflection_timoshenko"]) / beam["deflection_timoshenko"],
+        "generated_by": command,
+        "generated_utc": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "quick": bool(args.quick),
+        "versions": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "scipy": scipy.__version__,
+            "scikit-fem": version("scikit-fem"),
+        },
+        "seconds": round(time.time() - t_start, 1),
+    }
+    key = f"nu_{nu:g}" + ("" if args.variant == "full" else f"_{args.variant}")
+    if args.out.exists():
+        result = json.loads(args.out.read_text(encoding="utf-8"))
+    else:
+        result = {}
+    section = result.setdefault("cantilever_plane_strain", {})
+    section["parameters"] = {
+        **{k: ISSUE3[k] for k in ("E", "L", "h", "t", "P")},
+        "plane": "strain",
+        "constitutive": "2D plane-strain matrix: lambda = E nu / ((1 + nu)(1 - 2 nu)), mu = E / (2 (1 + nu))",
+        "body": "[0, L] x [0, h]",
+        "load_cantilever": "uniform shear traction P/(h t) in -y on x = L; x = 0 clamped",
+        "entries": "nu_NU: one Poisson ratio each (nu_NU_sri: selective reduced integration check)",
+    }
+    section["method"] = {
+        "element": "ElementVector(ElementQuad2): 9-node biquadratic Lagrange quadrilateral; variant full: 3x3 "
+        "Gauss for the whole stiffness; variant sri: 2x2 Gauss for the lambda div u div v term",
+        "meshes": "as the plane-stress cantilever (graded gamma = 2 towards (0,0), (0,h), and uniform), "
+        "one level further (ny up to 64 in both sequences)",
+        "loads_solver_extrapolation": "as in the top-level method entry",
+        "beam_theory": "Timoshenko P L^3/(3 E' I) + P L/(kappa G A), E' = E/(1 - nu^2), G = E/(2 (1 + nu)), "
+        "kappa = 5/6 (magnitudes)",
+    }
+    section[key] = entry
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(_finite(result), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    print(f"\nwrote {args.out} (cantilever_plane_strain -> {key}; {entry['seconds']} s)")
+    state = "converged" if entry["converged"] else "NOT converged"
+    print(
+        f"  uy_tip {entry['value']:.10g} m +- {entry['rel_error']:.1e} (rel), {state}, order "
+        f"{entry['observed_order']}, criterion met at ny={entry['criterion_met_at_ny']}; Timoshenko "
+        f"{-beam['deflection_timoshenko']:.6g} m ({100 * entry['rel_diff_to_timoshenko']:+.3f} %)"
+    )
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
@@ -505,9 +661,29 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="grading exponent for both scenes (default: 2 for the cantilever, 3 for three-point bending)",
     )
+    ap.add_argument(
+        "--plane",
+        choices=("stress", "strain"),
+        default="stress",
+        help="stress (default): both scenes, nu = 0.2, writes the whole file; strain: the cantilever "
+        "tip deflection for --nu, merged into the file under cantilever_plane_strain",
+    )
+    ap.add_argument("--nu", type=float, default=None, help="Poisson ratio (with --plane strain only)")
+    ap.add_argument(
+        "--variant",
+        choices=("full", "sri"),
+        default="full",
+        help="with --plane strain: full (3x3 Gauss, default) or sri (2x2 Gauss on the lambda term)",
+    )
     args = ap.parse_args(argv)
     if args.out is None:
         args.out = Path(tempfile.gettempdir()) / "fe_references_quick.json" if args.quick else DEFAULT_OUT
+    if args.plane == "strain":
+        if args.nu is None:
+            ap.error("--plane strain needs --nu")
+        return plane_strain_main(args)
+    if args.nu is not None or args.variant != "full":
+        ap.error("--nu and --variant apply to --plane strain only")
 
     t_start = time.time()
     if args.quick:

@@ -5,7 +5,7 @@ module iem_config
   private
   public :: config_t, run_config_t, geometry_config_t, material_config_t
   public :: node_set_spec_t, time_function_spec_t, bc_config_t, load_config_t
-  public :: damping_config_t, probe_config_t, static_config_t
+  public :: damping_config_t, probe_config_t, static_config_t, initial_config_t
   public :: name_len, path_len
 
   integer, parameter :: name_len = 64, path_len = 1024
@@ -21,6 +21,12 @@ module iem_config
     real(wp) :: output_interval = 0.0_wp
     real(wp) :: history_interval = 0.0_wp
     real(wp) :: progress_interval = 10.0_wp
+    !> Guards of a dynamic run: relative energy-balance error that warns, and that stops the
+    !> run (0: off); steps between checks for non-finite values and of the energy balance.
+    real(wp) :: energy_warn = 0.05_wp, energy_stop = 0.5_wp
+    integer :: check_interval = 10
+    !> Accept a given dt above the stability limit (with a warning) instead of refusing it.
+    logical :: allow_unstable_dt = .false.
     character(len=path_len) :: output_file = 'iem_out.h5'
     logical :: overwrite = .false.
   end type run_config_t
@@ -69,6 +75,8 @@ module iem_config
     logical :: dof(2) = .false.
     real(wp) :: velocity(2) = 0.0_wp
     type(time_function_spec_t) :: tf
+    !> Time (s) from which the condition no longer acts (the dofs are released); huge: never.
+    real(wp) :: t_release = huge(1.0_wp)
   end type bc_config_t
 
   !> One load (&load).
@@ -89,6 +97,15 @@ module iem_config
     !> frequency (Hz); beta is then found by the model for ratio at frequency.
     real(wp) :: cap_frequency = 0.0_wp
   end type damping_config_t
+
+  !> Initial velocity field (&initial; dynamic runs): a uniform velocity plus a rigid spin
+  !> at angular_velocity (rad/s, counter-clockwise) about center.
+  type :: initial_config_t
+    real(wp) :: velocity(2) = 0.0_wp
+    real(wp) :: angular_velocity = 0.0_wp
+    real(wp) :: center(2) = 0.0_wp
+    logical :: given = .false.
+  end type initial_config_t
 
   !> Quasi-static analysis by dynamic relaxation (&static; only with analysis = 'static').
   type :: static_config_t
@@ -121,6 +138,7 @@ module iem_config
     type(material_config_t) :: material
     type(damping_config_t) :: damping
     type(static_config_t) :: static
+    type(initial_config_t) :: initial
     type(bc_config_t), allocatable :: bcs(:)
     type(load_config_t), allocatable :: loads(:)
     type(probe_config_t), allocatable :: probes(:)

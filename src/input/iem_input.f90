@@ -1,6 +1,7 @@
 !> Reads the namelist input: rank 0 reads the file, every rank parses the same broadcast text
 !> and validates it, so that all ranks agree on every error. Errors name group, variable, value.
 module iem_input
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Bcast, MPI_INTEGER
   use iem_kinds, only: wp
   use iem_constants, only: unset_real
@@ -13,11 +14,11 @@ module iem_input
   public :: read_config
 
   character(len=*), parameter :: known_groups(*) = [character(len=8) :: &
-    'run', 'geometry', 'material', 'damping', 'bc', 'load', 'probe', 'static']
+    'run', 'geometry', 'material', 'damping', 'bc', 'load', 'probe', 'static', 'initial']
   logical, parameter :: repeatable(*) = [.false., .false., .false., .false., .true., .true., &
-    .true., .false.]
+    .true., .false., .false.]
   logical, parameter :: required(*) = [.true., .true., .true., .false., .false., .false., &
-    .false., .false.]
+    .false., .false., .false.]
 
 contains
 
@@ -47,7 +48,7 @@ contains
       if (k == 0) then
         call fail('unknown namelist group &'//trim(text%groups(g)%name)//' on line '// &
                   itoa(text%groups(g)%first_line)//' (known groups: &run, &geometry, '// &
-                  '&material, &damping, &bc, &load, &probe, &static)')
+                  '&material, &damping, &bc, &load, &probe, &static, &initial)')
         return
       end if
       count(k) = count(k) + 1
@@ -87,6 +88,8 @@ contains
         call read_probe(text, g, ip, cfg%probes(ip), stat, msg)
       case ('static')
         call read_static(text, g, cfg, stat, msg)
+      case ('initial')
+        call read_initial(text, g, cfg, stat, msg)
       end select
       if (stat /= 0) then
         msg = trim(path)//': '//msg
@@ -204,10 +207,57 @@ contains
       call parse_probe(part, p, ios, m)
     case ('static')
       call parse_static(part, c, ios, m)
+    case ('initial')
+      call parse_initial(part, c, ios, m)
     case default
       ios = 0
     end select
   end function try_read
+
+  ! ------------------------------------------------------------------------------ &initial
+  subroutine parse_initial(chunk, cfg, ios, iomsg)
+    character(len=line_len), intent(in) :: chunk(:)
+    type(config_t), intent(inout) :: cfg
+    integer, intent(out) :: ios
+    character(len=:), allocatable, intent(out) :: iomsg
+    real(wp) :: velocity(2), angular_velocity, center(2)
+    character(len=256) :: m
+    namelist /initial/ velocity, angular_velocity, center
+    velocity = cfg%initial%velocity; angular_velocity = cfg%initial%angular_velocity
+    center = cfg%initial%center
+    m = ''
+    read(chunk, nml=initial, iostat=ios, iomsg=m)
+    iomsg = trim(m)
+    cfg%initial%velocity = velocity; cfg%initial%angular_velocity = angular_velocity
+    cfg%initial%center = center
+  end subroutine parse_initial
+
+  subroutine read_initial(text, g, cfg, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    type(config_t), intent(inout) :: cfg
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=line_len), allocatable :: chunk(:)
+    character(len=:), allocatable :: iomsg
+    character(len=*), parameter :: label = '&initial'
+    call check_keys(text, g, [character(len=16) :: 'velocity', 'angular_velocity', 'center'], &
+                    label, stat, msg)
+    if (stat /= 0) return
+    call text%chunk(g, chunk)
+    call parse_initial(chunk, cfg, stat, iomsg)
+    if (stat /= 0) then
+      call read_error(text, g, label, iomsg, chunk, msg)
+      stat = 1
+      return
+    end if
+    cfg%initial%given = .true.
+    if (.not. all(ieee_is_finite([cfg%initial%velocity, cfg%initial%angular_velocity, &
+                                  cfg%initial%center]))) then
+      call bad(label, 'velocity, angular_velocity, center', '', 'must be finite numbers', &
+               stat, msg)
+    end if
+  end subroutine read_initial
 
   ! ---------------------------------------------------------------------------------- &run
   subroutine parse_run(chunk, cfg, ios, iomsg)
@@ -217,16 +267,21 @@ contains
     character(len=:), allocatable, intent(out) :: iomsg
     character(len=16) :: analysis, integrator
     real(wp) :: t_end, dt, dt_safety, output_interval, history_interval, progress_interval
+    real(wp) :: energy_warn, energy_stop
+    integer :: check_interval
     character(len=path_len) :: output_file
-    logical :: overwrite
+    logical :: overwrite, allow_unstable_dt
     character(len=256) :: m
     namelist /run/ analysis, integrator, t_end, dt, dt_safety, output_interval, &
-      history_interval, progress_interval, output_file, overwrite
+      history_interval, progress_interval, output_file, overwrite, energy_warn, energy_stop, &
+      check_interval, allow_unstable_dt
     analysis = cfg%run%analysis; integrator = cfg%run%integrator
     t_end = unset_real; dt = cfg%run%dt
     dt_safety = cfg%run%dt_safety; output_interval = cfg%run%output_interval
     history_interval = cfg%run%history_interval; progress_interval = cfg%run%progress_interval
     output_file = cfg%run%output_file; overwrite = cfg%run%overwrite
+    energy_warn = cfg%run%energy_warn; energy_stop = cfg%run%energy_stop
+    check_interval = cfg%run%check_interval; allow_unstable_dt = cfg%run%allow_unstable_dt
     m = ''
     read(chunk, nml=run, iostat=ios, iomsg=m)
     iomsg = trim(m)
@@ -235,6 +290,8 @@ contains
     cfg%run%dt_safety = dt_safety; cfg%run%output_interval = output_interval
     cfg%run%history_interval = history_interval; cfg%run%progress_interval = progress_interval
     cfg%run%output_file = output_file; cfg%run%overwrite = overwrite
+    cfg%run%energy_warn = energy_warn; cfg%run%energy_stop = energy_stop
+    cfg%run%check_interval = check_interval; cfg%run%allow_unstable_dt = allow_unstable_dt
   end subroutine parse_run
 
   subroutine read_run(text, g, cfg, stat, msg)
@@ -248,7 +305,8 @@ contains
     character(len=*), parameter :: label = '&run'
     call check_keys(text, g, [character(len=20) :: 'analysis', 'integrator', 't_end', 'dt', &
       'dt_safety', 'output_interval', 'history_interval', 'progress_interval', 'output_file', &
-      'overwrite'], label, stat, msg)
+      'overwrite', 'energy_warn', 'energy_stop', 'check_interval', 'allow_unstable_dt'], &
+      label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_run(chunk, cfg, stat, iomsg)
@@ -287,6 +345,16 @@ contains
       else if (.not. (r%progress_interval > 0.0_wp)) then
         call bad(label, 'progress_interval', rtoa(r%progress_interval), &
                  'must be > 0 [s of wall time]', stat, msg)
+      else if (.not. (r%energy_warn >= 0.0_wp)) then
+        call bad(label, 'energy_warn', rtoa(r%energy_warn), 'must be >= 0 (0: off)', stat, msg)
+      else if (.not. (r%energy_stop >= 0.0_wp)) then
+        call bad(label, 'energy_stop', rtoa(r%energy_stop), 'must be >= 0 (0: off)', stat, msg)
+      else if (r%energy_stop > 0.0_wp .and. r%energy_warn > r%energy_stop) then
+        call bad(label, 'energy_warn', rtoa(r%energy_warn), 'must not exceed energy_stop = '// &
+                 rtoa(r%energy_stop), stat, msg)
+      else if (r%check_interval < 1) then
+        call bad(label, 'check_interval', itoa(r%check_interval), 'must be >= 1 [steps]', &
+                 stat, msg)
       else if (len_trim(r%output_file) == 0) then
         call bad(label, 'output_file', "''", 'must name a file', stat, msg)
       end if
@@ -300,8 +368,9 @@ contains
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
     character(len=:), allocatable :: name
-    character(len=*), parameter :: vars(*) = [character(len=16) :: 'integrator', 'dt', &
-      'dt_safety', 'output_interval', 'history_interval']
+    character(len=*), parameter :: vars(*) = [character(len=17) :: 'integrator', 'dt', &
+      'dt_safety', 'output_interval', 'history_interval', 'energy_warn', 'energy_stop', &
+      'check_interval', 'allow_unstable_dt']
     integer :: k
     name = ''
     associate(grp => text%groups(g))
@@ -664,11 +733,13 @@ contains
     character(len=:), allocatable, intent(out) :: iomsg
     character(len=name_len) :: name
     character(len=8) :: where, kind, dofs, time_function
-    real(wp) :: box(4), point(2), velocity(2), t_start, t_ramp
+    real(wp) :: box(4), point(2), velocity(2), t_start, t_ramp, t_release
     character(len=256) :: m
-    namelist /bc/ name, where, box, point, kind, dofs, velocity, time_function, t_start, t_ramp
+    namelist /bc/ name, where, box, point, kind, dofs, velocity, time_function, t_start, &
+      t_ramp, t_release
     name = ''; where = ''; box = unset_real; point = unset_real; kind = 'fix'; dofs = 'xy'
     velocity = 0.0_wp; time_function = 'constant'; t_start = 0.0_wp; t_ramp = 0.0_wp
+    t_release = huge(1.0_wp)
     m = ''
     read(chunk, nml=bc, iostat=ios, iomsg=m)
     iomsg = trim(m)
@@ -678,6 +749,7 @@ contains
     b%dof(2) = index(lower(dofs), 'y') > 0
     if (len_trim(dofs) == 0 .or. verify(trim(lower(dofs)), 'xy') /= 0) b%dof = .false.
     b%tf%kind = lower(time_function); b%tf%t_start = t_start; b%tf%t_ramp = t_ramp
+    b%t_release = t_release
   end subroutine parse_bc
 
   subroutine read_bc(text, g, ib, b, stat, msg)
@@ -690,7 +762,7 @@ contains
     character(len=:), allocatable :: iomsg, label
     label = '&bc #'//itoa(ib)//' (line '//itoa(text%groups(g)%first_line)//')'
     call check_keys(text, g, [character(len=14) :: 'name', 'where', 'box', 'point', 'kind', &
-      'dofs', 'velocity', 'time_function', 't_start', 't_ramp'], label, stat, msg)
+      'dofs', 'velocity', 'time_function', 't_start', 't_ramp', 't_release'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_bc(chunk, b, stat, iomsg)
@@ -709,6 +781,9 @@ contains
     else if (b%kind == 'fix' .and. any(b%velocity /= 0.0_wp)) then
       call bad(label, 'velocity', rtoa(b%velocity(1))//', '//rtoa(b%velocity(2)), &
                "needs kind = 'velocity'", stat, msg)
+    else if (.not. (b%t_release > 0.0_wp)) then
+      call bad(label, 't_release', rtoa(b%t_release), 'must be > 0 [s] (omit it: never '// &
+               'released)', stat, msg)
     else
       call check_tf(b%tf, label, stat, msg)
     end if
@@ -937,6 +1012,17 @@ contains
       stat = 1
       msg = "&static is only for analysis = 'static', but &run has analysis = '"// &
             trim(cfg%run%analysis)//"'; remove &static or set analysis = 'static' in &run"
+      return
+    end if
+    if (cfg%initial%given .and. cfg%run%analysis == 'static') then
+      stat = 1
+      msg = "&initial is only for analysis = 'dynamic' (a static run starts at rest)"
+      return
+    end if
+    if (cfg%run%analysis == 'static' .and. any(cfg%bcs(:)%t_release < huge(1.0_wp))) then
+      k = findloc(cfg%bcs(:)%t_release < huge(1.0_wp), .true., 1)
+      call bad('&bc #'//itoa(k), 't_release', rtoa(cfg%bcs(k)%t_release), "is only for "// &
+               "analysis = 'dynamic'", stat, msg)
       return
     end if
     if (cfg%material%nonlinear .and. cfg%geometry%cell /= 'paper') then

@@ -36,6 +36,8 @@ module iem_model
     integer, allocatable :: bc_node(:), bc_comp(:), bc_id(:)
     real(wp), allocatable :: bc_velocity(:, :)
     type(time_function_spec_t), allocatable :: bc_tf(:)
+    !> Time from which each &bc no longer acts (huge: never released).
+    real(wp), allocatable :: bc_release(:)
     !> Load entries: owned node, force vector at full load, load index.
     integer, allocatable :: load_node(:), load_id(:)
     real(wp), allocatable :: load_force(:, :)
@@ -124,6 +126,8 @@ contains
     end do
     allocate(this%bc_node(n), this%bc_comp(n), this%bc_id(n))
     allocate(this%bc_velocity(2, size(cfg%bcs)), this%bc_tf(size(cfg%bcs)))
+    allocate(this%bc_release(size(cfg%bcs)))
+    this%bc_release = cfg%bcs(:)%t_release
     taken = .false.
     n = 0
     do b = 1, size(cfg%bcs)
@@ -217,7 +221,8 @@ contains
     end do
   end subroutine index_loaded_nodes
 
-  !> Overwrite the velocities of prescribed dofs in y(4, :) with their values at time t.
+  !> Overwrite the velocities of prescribed dofs in y(4, :) with their values at time t
+  !> (released conditions, t >= t_release, no longer act).
   subroutine model_prescribe(this, y, t)
     class(model_t), intent(in) :: this
     real(wp), intent(inout) :: y(:, :)
@@ -225,6 +230,7 @@ contains
     integer :: q, b
     do q = 1, size(this%bc_node)
       b = this%bc_id(q)
+      if (t >= this%bc_release(b)) cycle
       y(2 + this%bc_comp(q), this%bc_node(q)) = this%bc_velocity(this%bc_comp(q), b)* &
                                                 tf_value(this%bc_tf(b), t)
     end do
@@ -288,6 +294,7 @@ contains
       l = this%bc_node(n)
       comp = this%bc_comp(n)
       b = this%bc_id(n)
+      if (t >= this%bc_release(b)) cycle
       acc(comp, l) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
       if (y(2 + comp, l) /= 0.0_wp) then
         r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + this%f(comp, l)

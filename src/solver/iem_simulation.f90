@@ -4,7 +4,8 @@
 module iem_simulation
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_SUM, MPI_MAX, &
-                     MPI_IN_PLACE, MPI_Wtime, MPI_INTEGER8
+                     MPI_IN_PLACE, MPI_Wtime, MPI_INTEGER8, MPI_LOGICAL, MPI_LAND, MPI_MIN, &
+                     MPI_INTEGER, MPI_2DOUBLE_PRECISION, MPI_MAXLOC
   use iem_kinds, only: wp, i8, mpi_wp
   use iem_config, only: config_t, damping_config_t
   use iem_grid, only: grid_t
@@ -75,6 +76,12 @@ module iem_simulation
     real(wp) :: e0 = 0.0_wp, e_scale = 0.0_wp, last_balance = 0.0_wp
     real(wp) :: w_ext = 0.0_wp, w_damp = 0.0_wp
     logical :: output_open = .false.
+    !> Guards: the owned (u, v) at the last check that found every value finite, its step and
+    !> time; whether the energy warning has been given.
+    real(wp), allocatable :: snap(:, :)
+    integer(i8) :: snap_step = 0
+    real(wp) :: snap_time = 0.0_wp
+    logical :: warned = .false.
   contains
     procedure :: setup => simulation_setup
     procedure :: run => simulation_run
@@ -105,6 +112,12 @@ contains
       this%cfg%damping = damping_config_t()
     end if
     this%comm = comm
+    ! volumetric locking of the paper's cell: its Poisson springs grow like 1/(1 - nu'^2)
+    if (cfg%geometry%cell == 'paper' .and. cfg%geometry%plane == 'strain' .and. &
+        cfg%material%poisson >= 0.45_wp) call log_warn("nu = "// &
+      rtoa(cfg%material%poisson)//" in plane strain: the paper's cell locks (too stiff "// &
+      "in bending: by 14% at nu = 0.45, 40% at 0.49, 86% at 0.499 with 8 cells through the "// &
+      "depth, docs/stability.md); cell = 'bending' does not")
     call MPI_Comm_rank(comm, this%rank)
     call MPI_Comm_size(comm, this%n_ranks)
     associate(g => cfg%geometry)
@@ -151,13 +164,19 @@ contains
                                       this%model%omega_cap)
       end if
       if (cfg%run%dt > 0.0_wp) then
-        if (cfg%run%dt > this%dt_limit) then
+        if (cfg%run%dt > this%dt_limit .and. cfg%run%allow_unstable_dt) then
+          call log_warn('&run: dt = '//rtoa(cfg%run%dt)//' s is '// &
+            rtoa(cfg%run%dt/this%dt_limit)//' times the stability limit '// &
+            rtoa(this%dt_limit)//' s of '//integrator_name(this)// &
+            ' (allow_unstable_dt = .true.): expect the run to diverge; the guards will stop it')
+        else if (cfg%run%dt > this%dt_limit) then
           stat = 1
           msg = trim(cfg%input_file)//': &run: dt = '//rtoa(cfg%run%dt)// &
                 ' s is above the stability limit '//rtoa(this%dt_limit)// &
                 ' s of '//integrator_name(this)//' for this grid and damping (omega_max = '// &
                 rtoa(this%omega_max)// &
-                ' rad/s); use dt <= '//rtoa(this%dt_limit)//' or dt = 0 (automatic)'
+                ' rad/s); use dt <= '//rtoa(this%dt_limit)//' or dt = 0 (automatic), or '// &
+                'allow_unstable_dt = .true. to run it anyway'
           return
         end if
         this%dt = cfg%run%dt
@@ -223,6 +242,11 @@ contains
     ! they do not add to the peak memory
     call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
                       rk4_work=.not. (this%static .or. this%verlet))
+    if (.not. this%static) then
+      allocate(this%snap(4, this%lat%n_owned))
+      this%snap = 0.0_wp
+      call initial_velocity(this)
+    end if
     call this%model%prescribe(this%st%y, 0.0_wp)
     if (this%static) then
       call run_static(this, stat, msg)
@@ -240,17 +264,19 @@ contains
       ! the rates at y(t): Verlet's last step has evaluated them already
       if (k == 0 .or. .not. this%verlet) call state_rate(this%model, this%lat, this%halo, &
                                                          this%st, t)
+      if (mod(k, int(this%cfg%run%check_interval, i8)) == 0) then
+        call check_state(this, k, t, stat, msg)
+        if (stat /= 0) return
+      end if
       if (k == 0 .or. k == this%n_steps .or. &
           crossed(t_prev, t, this%cfg%run%history_interval)) then
         call record_sample(this, k, t, diverged)
         if (diverged) then
-          stat = 3
-          msg = 'the solution diverged (non-finite energy) by step '//itoa(k)//', t = '// &
-                rtoa(t)//' s, with dt = '//rtoa(this%dt)//' s (stability limit '// &
-                rtoa(this%dt_limit)//' s)'
-          call flush_history(this, stat)
+          call stop_nonfinite(this, k, t, stat, msg)
           return
         end if
+        call energy_guard(this, k, t, stat, msg)
+        if (stat /= 0) return
       end if
       if (k == 0 .or. k == this%n_steps .or. &
           crossed(t_prev, t, this%cfg%run%output_interval)) then
@@ -639,6 +665,140 @@ contains
         rtoa(this%dt_limit/undamped_limit(this))//' of the undamped one')
     end if
   end subroutine report_start
+
+  !> The initial velocity field of &initial: uniform velocity plus a rigid spin (the filtered
+  !> velocity of capped damping starts equal to it).
+  subroutine initial_velocity(this)
+    type(simulation_t), intent(inout) :: this
+    integer :: l
+    real(wp) :: xy(2)
+    associate(ini => this%cfg%initial)
+      do l = 1, this%lat%n_owned
+        xy = this%grid%node_xy(this%lat%gid(l)) - ini%center
+        this%st%y(3:4, l) = ini%velocity + ini%angular_velocity*[-xy(2), xy(1)]
+        if (this%model%n_state == 6) this%st%y(5:6, l) = this%st%y(3:4, l)
+      end do
+    end associate
+  end subroutine initial_velocity
+
+  !> Guard at step k: every owned value finite (else stop with the last good frame); keep the
+  !> state as the last good one; the energy balance against the thresholds. Collective.
+  subroutine check_state(this, k, t, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: n
+    logical :: finite
+    stat = 0
+    msg = ''
+    n = this%lat%n_owned
+    finite = all(ieee_is_finite(this%st%y(1:4, 1:n)))
+    call MPI_Allreduce(MPI_IN_PLACE, finite, 1, MPI_LOGICAL, MPI_LAND, this%comm)
+    if (.not. finite) then
+      call stop_nonfinite(this, k, t, stat, msg)
+      return
+    end if
+    this%snap = this%st%y(1:4, 1:n)
+    this%snap_step = k
+    this%snap_time = t
+  end subroutine check_state
+
+  !> Stop on non-finite values at step k: name the first node (lowest global index) where one
+  !> appeared, its rank and position, and write the last good state as a frame. Collective.
+  subroutine stop_nonfinite(this, k, t, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(i8) :: first, mine
+    integer :: l, owner, stat2
+    real(wp) :: xy(2), big(2)
+    character(len=:), allocatable :: msg2
+    mine = huge(1_i8)
+    do l = 1, this%lat%n_owned
+      if (.not. all(ieee_is_finite(this%st%y(1:4, l)))) then
+        mine = this%lat%gid(l)
+        exit
+      end if
+    end do
+    call MPI_Allreduce(mine, first, 1, MPI_INTEGER8, MPI_MIN, this%comm)
+    owner = -1
+    if (mine == first) owner = this%rank
+    call MPI_Allreduce(MPI_IN_PLACE, owner, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    stat = 3
+    if (first == huge(1_i8)) then
+      msg = 'the solution diverged (non-finite energy) at step '//itoa(k)//', t = '//rtoa(t)//' s'
+    else
+      xy = this%grid%node_xy(first)
+      msg = 'the solution diverged: non-finite values at step '//itoa(k)//', t = '//rtoa(t)// &
+            ' s, first at node '//itoa(first)//' (x = '//rtoa(xy(1))//', y = '//rtoa(xy(2))// &
+            ' m) on rank '//itoa(owner)
+    end if
+    ! where the growth was largest at the last good check
+    big = [-1.0_wp, -1.0_wp]
+    do l = 1, this%lat%n_owned
+      if (norm2(this%snap(3:4, l)) > big(1)) big = [norm2(this%snap(3:4, l)), &
+                                                    real(this%lat%gid(l), wp)]
+    end do
+    call MPI_Allreduce(MPI_IN_PLACE, big, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
+    xy = this%grid%node_xy(int(big(2), i8))
+    msg = msg//', with dt = '//rtoa(this%dt)//' s (stability limit '//rtoa(this%dt_limit)// &
+          ' s); at the last good check (step '//itoa(this%snap_step)//', written as the last '// &
+          'frame) the fastest node was '//itoa(int(big(2), i8))//' (x = '//rtoa(xy(1))// &
+          ', y = '//rtoa(xy(2))//' m, speed '//rtoa(big(1))//' m/s)'
+    call flush_history(this, stat2)
+    call this%out%write_frame(this%snap_step, this%snap_time, this%snap(1:2, :), &
+                              this%snap(3:4, :), stat2, msg2)
+  end subroutine stop_nonfinite
+
+  !> Energy guard after a history sample: warn once above energy_warn, stop above
+  !> energy_stop, naming the node with the largest speed (where a divergence grows fastest)
+  !> and writing the current state as the last frame. Collective.
+  subroutine energy_guard(this, k, t, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    real(wp) :: err, fast(2), xy(2)
+    integer :: l, stat2
+    logical :: warn, halt
+    character(len=:), allocatable :: where, msg2
+    stat = 0
+    msg = ''
+    err = this%last_balance
+    warn = this%cfg%run%energy_warn > 0.0_wp .and. err > this%cfg%run%energy_warn .and. &
+           .not. this%warned
+    halt = this%cfg%run%energy_stop > 0.0_wp .and. err > this%cfg%run%energy_stop
+    if (.not. (warn .or. halt)) return
+    ! the fastest node: (speed, global index) with MAXLOC
+    fast = [-1.0_wp, -1.0_wp]
+    do l = 1, this%lat%n_owned
+      if (norm2(this%st%y(3:4, l)) > fast(1)) fast = [norm2(this%st%y(3:4, l)), &
+                                                       real(this%lat%gid(l), wp)]
+    end do
+    call MPI_Allreduce(MPI_IN_PLACE, fast, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
+    xy = this%grid%node_xy(int(fast(2), i8))
+    where = 'fastest node '//itoa(int(fast(2), i8))//' (x = '//rtoa(xy(1))//', y = '// &
+            rtoa(xy(2))//' m, speed '//rtoa(fast(1))//' m/s)'
+    if (halt) then
+      stat = 3
+      msg = 'energy-balance error '//rtoa(err)//' > energy_stop = '// &
+            rtoa(this%cfg%run%energy_stop)//' at step '//itoa(k)//', t = '//rtoa(t)//' s; '// &
+            where//'; dt = '//rtoa(this%dt)//' s (stability limit '//rtoa(this%dt_limit)// &
+            ' s); the state at this step is the last frame'
+      call flush_history(this, stat2)
+      call write_frame(this, k, t, stat2)
+      return
+    end if
+    this%warned = .true.
+    call log_warn('energy-balance error '//rtoa(err)//' > energy_warn = '// &
+                  rtoa(this%cfg%run%energy_warn)//' at step '//itoa(k)//', t = '//rtoa(t)// &
+                  ' s; '//where//' (warned once; the run goes on)')
+  end subroutine energy_guard
 
   !> 'RK4' or 'velocity Verlet': the integrator of a dynamic run, for messages.
   function integrator_name(this) result(name)
