@@ -481,6 +481,12 @@ def load_fe_references(path: Optional[Union[str, Path]] = None) -> Dict[str, Any
     mesh ``sequence``.  Quantities: cantilever ``uy_tip`` and ``f1``; three-point bending
     ``d_mid``, ``uy_mid_raw`` (diverges), ``f1_point_supports`` (diverges),
     ``f1_section_pins`` and ``f1_axis_pins``.
+
+    ``"cantilever_plane_strain"`` holds the plane-strain cantilever tip deflection
+    (``uy_tip``, m) for near-incompressible material: ``"nu_0.49"`` and ``"nu_0.499"`` (ENTRY
+    as above, plus ``nu``, ``lambda``, ``mu`` and the plane-strain Timoshenko values in
+    ``beam_theory``); ``"nu_0.49_sri"`` and ``"nu_0.499_sri"`` (the same with selective reduced
+    integration, a locking check); ``"parameters"`` and ``"method"``.
     """
     if path is not None:
         text = Path(path).read_text(encoding="utf-8")

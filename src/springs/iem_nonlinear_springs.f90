@@ -5,7 +5,8 @@
 !> (committed only at accepted states) and the work done on them.
 module iem_nonlinear_springs
   use iem_kinds, only: wp, ip
-  use iem_masing, only: masing_state_t, masing_trial, masing_commit
+  use iem_masing, only: masing_state_t
+  use iem_spring_constants, only: effective_elastic
   implicit none
   private
   public :: nonlinear_springs_t, springs_per_cell, spring_kind_edge, spring_kind_poisson
@@ -52,12 +53,7 @@ contains
     logical, intent(in) :: plane_strain
     real(wp), intent(out) :: er_pos(3), er_neg(3)
     real(wp) :: e, nu, g
-    e = young
-    nu = poisson
-    if (plane_strain) then
-      e = young/(1.0_wp - poisson**2)
-      nu = poisson/(1.0_wp - poisson)
-    end if
+    call effective_elastic(young, poisson, plane_strain, e, nu)
     g = young/(2.0_wp*(1.0_wp + poisson))
     er_pos = [f_t/e, (1.0_wp - nu)*f_t/e, tau/g]
     er_neg = [f_c/e, (1.0_wp - nu)*f_c/e, tau/g]

@@ -4,6 +4,7 @@ module iem_spring_constants
   implicit none
   private
   public :: cell_constants_t, spring_moduli, cell_constants, law_paper, law_bending
+  public :: effective_elastic
 
   !> Cell laws: the paper's 12 springs, or the bending-corrected cell (docs/model.md).
   integer, parameter :: law_paper = 1, law_bending = 2
@@ -21,18 +22,27 @@ module iem_spring_constants
 
 contains
 
-  !> Moduli (Eq, Hq, Gq) of the edge, Poisson and shear springs for plane stress or strain.
-  pure function spring_moduli(young, poisson, plane_strain) result(m)
+  !> The in-plane modulus and Poisson ratio (E', nu'): (E, nu) in plane stress,
+  !> (E/(1 - nu^2), nu/(1 - nu)) in plane strain.
+  pure subroutine effective_elastic(young, poisson, plane_strain, e, nu)
     real(wp), intent(in) :: young, poisson
     logical, intent(in) :: plane_strain
-    real(wp) :: m(3)
-    real(wp) :: e, nu
+    real(wp), intent(out) :: e, nu
     e = young
     nu = poisson
     if (plane_strain) then
       e = young/(1.0_wp - poisson**2)
       nu = poisson/(1.0_wp - poisson)
     end if
+  end subroutine effective_elastic
+
+  !> Moduli (Eq, Hq, Gq) of the edge, Poisson and shear springs for plane stress or strain.
+  pure function spring_moduli(young, poisson, plane_strain) result(m)
+    real(wp), intent(in) :: young, poisson
+    logical, intent(in) :: plane_strain
+    real(wp) :: m(3)
+    real(wp) :: e, nu
+    call effective_elastic(young, poisson, plane_strain, e, nu)
     m(1) = e/(1.0_wp + nu)
     m(2) = nu*e/(2.0_wp*(1.0_wp - nu**2))
     m(3) = e/(4.0_wp*(1.0_wp + nu))

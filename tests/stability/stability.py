@@ -86,8 +86,10 @@ CLAMP_TIP = """&bc
 
 def cmd_incompressible(args) -> None:
     """Near-incompressible plane strain: the automatic step keeps a dynamic run bounded, and the
-    static deflection of the bending-corrected cell is within its discretisation error (2%
-    with 8 cells through the depth) of the plane-strain reference; the paper's cell locks
+    static deflection of the bending-corrected cell is within its discretisation error (1%
+    with 8 cells through the depth; measured -0.45%) of the plane-strain FE reference
+    (fe_references.json, cantilever_plane_strain; Timoshenko's beam where it is missing, which
+    is 1.5% softer than the 2D body here); the paper's cell locks
     (its Poisson springs' constant grows like 1/(1 - nu'), nu' = nu/(1 - nu)) and is reported,
     with a band that catches a change."""
     refs = {}
@@ -115,7 +117,8 @@ def cmd_incompressible(args) -> None:
                      f"nu = {nu}: dynamic run at the automatic step ({steps} steps) bounded: "
                      f"final energy-balance error {bal:.1e} < 1e-3, no guard warning")
             result(f"incompressible nu={nu} dynamic steps for 4 ms", steps)
-        for cell, band in (("bending", (0.98 - 0.02, 1.0)), ("paper", None)):
+        for cell, band in (("bending", (0.99, 1.01) if nu in refs else (0.97, 1.0)),
+                           ("paper", None)):
             p, out = run_scene(
                 args, f"incompressible_{cell}_{nu}",
                 "analysis = 'static', t_end = 1.0\n/\n&static\n  load_steps = 1, "
@@ -127,9 +130,10 @@ def cmd_incompressible(args) -> None:
             ratio = -float(energies(out)["tip"][-1, 1]) / ref
             result(f"incompressible nu={nu} cell={cell} static tip / {source}", f"{ratio:.4f}")
             if band:
-                rg.check(band[0] <= ratio <= band[1] + 0.005,
+                rg.check(band[0] <= ratio <= band[1],
                          f"nu = {nu}, bending cell: static tip deflection {ratio:.4f} of the "
-                         f"{source} value, within 2% (its error with 8 cells through the depth)")
+                         f"{source} value, in [{band[0]}, {band[1]}] (its discretisation error "
+                         f"with 8 cells through the depth)")
             else:
                 expect = {0.49: (0.55, 0.65), 0.499: (0.10, 0.20)}[nu]
                 rg.check(expect[0] <= ratio <= expect[1],
