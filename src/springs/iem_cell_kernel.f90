@@ -13,7 +13,8 @@ module iem_cell_kernel
   use iem_spring_constants, only: cell_constants_t, law_bending
   use iem_nonlinear_springs, only: nonlinear_springs_t, springs_per_cell, spring_kind, &
                                    spring_strains
-  use iem_masing, only: masing_trial, masing_commit
+  use iem_masing, only: masing_trial, masing_commit, masing_mirror_strain
+  use iem_kinds, only: ip
   implicit none
   private
   public :: cell_energy, cell_force, cell_forces, cell_strain_measures
@@ -305,8 +306,9 @@ contains
     real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
     logical, intent(in) :: accept
     real(wp), intent(out) :: g(chunk, 4), t(chunk, 4), en(chunk)
-    real(wp) :: e(springs_per_cell), psi(springs_per_cell), tan, dw, e_old, psi_old, er
+    real(wp) :: e(springs_per_cell), psi(springs_per_cell), tan, dw, e_old, psi_old, er, x
     integer :: c, j, i, kind
+    logical :: fast
     do c = 1, m
       e = spring_strains(ep(c, :), s(c, :))
       en(c) = 0.0_wp
@@ -316,18 +318,46 @@ contains
         associate(st => nl%state)
           e_old = st%strain(i)
           psi_old = st%stress(i)
-          if (accept) then
-            ! the committed stress is bit for bit the trial stress at the same strain
-            call masing_commit(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), st%strain(i), &
-                               st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
-                               st%s_rev(:, i), st%e_max_pos(i), st%e_max_neg(i))
-            psi(j) = st%stress(i)
+          fast = .true.
+          if (e(j) == e_old) then
+            psi(j) = psi_old
           else if (st%count(i) == 0 .and. (st%dir(i) == 0 .or. &
                    real(st%dir(i), wp)*(e(j) - e_old) > 0.0_wp)) then
             ! fast path: a spring on its skeleton that keeps going the same way
             er = merge(nl%er_pos(kind), nl%er_neg(kind), e(j) >= 0.0_wp)
             psi(j) = e(j)/(1.0_wp + abs(e(j))/er)
+          else if (on_branch(st%count(i), st%dir(i), e(j), e_old, st%e_rev(:, i), &
+                             nl%er_pos(kind), nl%er_neg(kind))) then
+            ! fast path: a spring that keeps going the same way on its current Masing branch,
+            ! short of the point where that branch ends (as masing_trial would find)
+            associate(n => st%count(i))
+              x = 0.5_wp*(e(j) - st%e_rev(n, i))
+              psi(j) = st%s_rev(n, i) + 2.0_wp*(x/(1.0_wp + abs(x)/ &
+                       (0.5_wp*(nl%er_pos(kind) + nl%er_neg(kind)))))
+            end associate
           else
+            fast = .false.
+          end if
+          if (accept) then
+            if (fast) then
+              ! no reversal and no branch ends: the commit moves along the same curve (what
+              ! masing_commit does in this case, bit for bit)
+              if (e(j) /= e_old) then
+                st%dir(i) = merge(1_ip, -1_ip, e(j) > e_old)
+                st%strain(i) = e(j)
+                st%stress(i) = psi(j)
+                st%e_max_pos(i) = max(st%e_max_pos(i), e(j))
+                st%e_max_neg(i) = min(st%e_max_neg(i), e(j))
+              end if
+            else
+              call masing_commit(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), &
+                                 st%strain(i), st%stress(i), st%dir(i), st%count(i), &
+                                 st%e_rev(:, i), st%s_rev(:, i), st%e_max_pos(i), &
+                                 st%e_max_neg(i))
+              ! the committed stress is bit for bit the trial stress at the same strain
+              psi(j) = st%stress(i)
+            end if
+          else if (.not. fast) then
             call masing_trial(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), st%strain(i), &
                               st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
                               st%s_rev(:, i), psi(j), tan)
@@ -345,6 +375,28 @@ contains
       t(c, :) = nl%c2(3)*psi(9:12)
     end do
   end subroutine nonlinear_law
+
+  !> Whether a spring with n > 0 reversal points, last moving in direction dir from its
+  !> committed strain e_c, reaches the trial strain e by going on along its current branch
+  !> (the one from reversal point n) without passing that branch's aim: the previous reversal
+  !> point, or for n = 1 the mirror of the first one (docs/nonlinear.md, section 4).
+  pure logical function on_branch(n, dir, e, e_c, e_rev, er_pos, er_neg)
+    integer(ip), intent(in) :: n, dir
+    real(wp), intent(in) :: e, e_c, e_rev(:), er_pos, er_neg
+    real(wp) :: aim
+    integer :: d
+    on_branch = .false.
+    if (n <= 0 .or. dir == 0) return
+    if (real(dir, wp)*(e - e_c) <= 0.0_wp) return
+    if (n >= 2) then
+      aim = e_rev(n - 1)
+      d = merge(1, -1, aim > e_rev(n))
+    else
+      aim = masing_mirror_strain(e_rev(1), er_pos, er_neg)
+      d = merge(-1, 1, e_rev(1) > 0.0_wp)
+    end if
+    on_branch = d == dir .and. real(d, wp)*(e - aim) < 0.0_wp
+  end function on_branch
 
   !> The elastic cell law on a chunk: generalised stresses g = dPi/d eps (edges) and
   !> t = dPi/d s (corners) from edge strains ep and corner shear measures s.

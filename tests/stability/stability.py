@@ -113,7 +113,7 @@ def cmd_incompressible(args) -> None:
             en = energies(out)
             bal = float(en["balance_error"][-1])
             steps = int(p.stdout.split(" steps to")[0].split()[-1])
-            rg.check(bal < 1e-3 and "warning" not in p.stderr,
+            rg.check(bal < 1e-3 and "iem: warning" not in p.stderr,
                      f"nu = {nu}: dynamic run at the automatic step ({steps} steps) bounded: "
                      f"final energy-balance error {bal:.1e} < 1e-3, no guard warning")
             result(f"incompressible nu={nu} dynamic steps for 4 ms", steps)
