@@ -12,6 +12,7 @@ figure, quoted in docs/stability.md):
   shock           step load, and sudden release of a support: no spurious energy growth
   spin            a free block spun at 100 rad/s for 10 revolutions keeps its shape and energy
   drift           (long) undamped energy drift per period, RK4 and Verlet at several dt
+  kill_rank       one of two ranks killed mid-run: the job ends, the output stays readable
 
 Usage: stability.py CASE --iem build/iem --mpiexec mpirun [--mpiexec-flags=--oversubscribe]
 """
@@ -309,16 +310,82 @@ def cmd_drift(args) -> None:
                                     f"(|.| < 1e-5 of the energy)")
 
 
+def cmd_kill_rank(args) -> None:
+    """A fault: one of two ranks is killed (SIGKILL) in the middle of a run. The job must end
+    on its own (Open MPI aborts the others; no hang), with a non-zero exit status, and the
+    output written so far must stay readable (every frame is flushed when written)."""
+    import os
+    import signal
+    import subprocess
+    import time
+    work = rg.scratch("stability_kill_rank")
+    nml = work / "case.nml"
+    nml.write_text(BEAM.format(run="t_end = 10.0, output_interval = 1.0e-3, history_interval = "
+                                   "1.0e-4, progress_interval = 1.0e6",
+                               extra=CLAMP_TIP.format(tf=", time_function = 'step'"), L=1.0,
+                               h=0.1, nx=80, ny=8, plane="stress", cell="paper", nu=NU,
+                               ymid=0.05))
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    proc = subprocess.Popen(rg.mpi_command(args, 2, nml), cwd=work, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    out = work / "out.h5"
+    t0 = time.time()
+    frames = 0
+    while time.time() - t0 < 120 and proc.poll() is None:
+        time.sleep(0.5)
+        if out.exists():
+            try:
+                with h5py.File(out, "r") as f:
+                    frames = len(f["frames/time"])
+            except OSError:
+                continue
+            if frames >= 3:
+                break
+    pids = subprocess.run(["pgrep", "-f", f"{args.iem} {nml}"], text=True,
+                          capture_output=True).stdout.split()
+    pids = [int(p) for p in pids if int(p) != proc.pid]
+    rg.check(proc.poll() is None and len(pids) >= 2,
+             f"the run is going ({frames} frames written) with its ranks ({len(pids)} processes)")
+    if not pids:
+        proc.kill()
+        return
+    t_kill = time.time()
+    os.kill(max(pids), signal.SIGKILL)
+    try:
+        proc.communicate(timeout=60)
+        ended = True
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        ended = False
+    waited = time.time() - t_kill
+    rg.check(ended and proc.returncode != 0,
+             f"killing one rank ends the job in {waited:.1f} s (< 60 s), exit {proc.returncode}")
+    result("kill one rank: job ended after (s)", f"{waited:.1f}")
+    try:
+        with h5py.File(out, "r") as f:
+            names = sorted(k for k in f["frames"] if k.startswith("frame_"))
+            ok = all(np.all(np.isfinite(f[f"frames/{k}/displacement"][:])) for k in names[:-1])
+            n = len(names)
+            complete = int(f.attrs["complete"])
+        rg.check(ok and n >= 3 and complete == 0,
+                 f"the output stays readable: {n} frames, marked incomplete")
+        result("kill one rank: frames readable", n)
+    except OSError as exc:
+        rg.check(False, f"the output stays readable ({exc})")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("case", choices=["incompressible", "aspect", "dt_limit", "shock", "spin",
-                                     "drift"])
+                                     "drift", "kill_rank"])
     ap.add_argument("--iem", required=True)
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="")
     args = ap.parse_args()
     {"incompressible": cmd_incompressible, "aspect": cmd_aspect, "dt_limit": cmd_dt_limit,
-     "shock": cmd_shock, "spin": cmd_spin, "drift": cmd_drift}[args.case](args)
+     "shock": cmd_shock, "spin": cmd_spin, "drift": cmd_drift,
+     "kill_rank": cmd_kill_rank}[args.case](args)
     if rg.FAILURES:
         print(f"{len(rg.FAILURES)} check(s) failed")
         return 1
