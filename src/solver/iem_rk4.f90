@@ -1,6 +1,7 @@
 !> Classical explicit 4th-order Runge-Kutta step of the first-order system (u, v), with a halo
 !> exchange before every stage's force evaluation; stage 1 is iem_state's state_rate.
 module iem_rk4
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use iem_kinds, only: wp
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
@@ -14,15 +15,18 @@ module iem_rk4
 contains
 
   !> Stages 2-4 and the update y <- y + dt/6 (k1 + 2 k2 + 2 k3 + k4); accumulates the local
-  !> external work and damping dissipation of the step with the same weights.
-  subroutine rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp)
+  !> external work and damping dissipation of the step with the same weights. With finite
+  !> present, the new state is accepted only if all its owned values are finite (finite =
+  !> .false.: y keeps the state at t and st%ynew holds the rejected one).
+  subroutine rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, finite)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
     type(state_t), intent(inout) :: st
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
-    real(wp) :: p_ext, p_damp, h
+    logical, intent(out), optional :: finite
+    real(wp) :: p_ext, p_damp, h, total
     integer :: l, n, stage, ns
     real(wp), parameter :: weight(4) = [1.0_wp, 2.0_wp, 2.0_wp, 1.0_wp]/6.0_wp
     real(wp), parameter :: frac(4) = [0.0_wp, 0.5_wp, 0.5_wp, 1.0_wp]
@@ -63,6 +67,18 @@ contains
         end do
       end if
     end do
+    if (present(finite)) then
+      ! any NaN or Inf (or an overflow) makes the sum non-finite
+      total = 0.0_wp
+      do l = 1, n
+        total = total + sum(st%ynew(:, l))
+      end do
+      finite = ieee_is_finite(total)
+      if (.not. finite) then
+        call timer_stop(t_update)
+        return
+      end if
+    end if
     st%y(:, 1:n) = st%ynew
     call model%prescribe(st%y, t + dt)
     call timer_stop(t_update)

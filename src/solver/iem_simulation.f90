@@ -234,7 +234,7 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     integer(i8) :: k
     real(wp) :: t, t_prev, wall0, wall_last, next_report
-    logical :: diverged
+    logical :: diverged, finite
 
     call open_output(this, stat, msg)
     if (stat /= 0) return
@@ -243,7 +243,9 @@ contains
     call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
                       rk4_work=.not. (this%static .or. this%verlet))
     if (.not. this%static) then
-      allocate(this%snap(4, this%lat%n_owned))
+      ! Verlet updates the state in place: the guard keeps a copy of the last good one; RK4
+      ! checks each new state before accepting it and needs none
+      allocate(this%snap(4, merge(this%lat%n_owned, 0, this%verlet)))
       this%snap = 0.0_wp
       call initial_velocity(this)
     end if
@@ -264,7 +266,7 @@ contains
       ! the rates at y(t): Verlet's last step has evaluated them already
       if (k == 0 .or. .not. this%verlet) call state_rate(this%model, this%lat, this%halo, &
                                                          this%st, t)
-      if (mod(k, int(this%cfg%run%check_interval, i8)) == 0) then
+      if (this%verlet .and. mod(k, int(this%cfg%run%check_interval, i8)) == 0) then
         call check_state(this, k, t, stat, msg)
         if (stat /= 0) return
       end if
@@ -272,7 +274,14 @@ contains
           crossed(t_prev, t, this%cfg%run%history_interval)) then
         call record_sample(this, k, t, diverged)
         if (diverged) then
-          call stop_nonfinite(this, k, t, stat, msg)
+          if (this%verlet) then
+            call stop_nonfinite(this, k, t, this%st%y, this%snap, this%snap_step, &
+                                this%snap_time, stat, msg)
+          else
+            ! RK4 accepted only finite states: the energies overflowed
+            call stop_nonfinite(this, k, t, this%st%y, this%st%y(1:4, 1:this%lat%n_owned), &
+                                k, t, stat, msg)
+          end if
           return
         end if
         call energy_guard(this, k, t, stat, msg)
@@ -296,7 +305,14 @@ contains
                          this%w_ext, this%w_damp)
       else
         call rk4_finish_step(this%model, this%lat, this%halo, this%st, t, this%dt, &
-                             this%w_ext, this%w_damp)
+                             this%w_ext, this%w_damp, finite)
+        call MPI_Allreduce(MPI_IN_PLACE, finite, 1, MPI_LOGICAL, MPI_LAND, this%comm)
+        if (.not. finite) then
+          ! the step is not accepted: y still holds the last good state, that of step k
+          call stop_nonfinite(this, k + 1, t + this%dt, this%st%ynew, &
+                              this%st%y(1:4, 1:this%lat%n_owned), k, t, stat, msg)
+          return
+        end if
       end if
       t_prev = t
     end do
@@ -697,7 +713,8 @@ contains
     finite = all(ieee_is_finite(this%st%y(1:4, 1:n)))
     call MPI_Allreduce(MPI_IN_PLACE, finite, 1, MPI_LOGICAL, MPI_LAND, this%comm)
     if (.not. finite) then
-      call stop_nonfinite(this, k, t, stat, msg)
+      call stop_nonfinite(this, k, t, this%st%y, this%snap, this%snap_step, this%snap_time, &
+                          stat, msg)
       return
     end if
     this%snap = this%st%y(1:4, 1:n)
@@ -705,12 +722,14 @@ contains
     this%snap_time = t
   end subroutine check_state
 
-  !> Stop on non-finite values at step k: name the first node (lowest global index) where one
-  !> appeared, its rank and position, and write the last good state as a frame. Collective.
-  subroutine stop_nonfinite(this, k, t, stat, msg)
+  !> Stop on non-finite values in the state bad(:, owned nodes) of step k: name the first node
+  !> (lowest global index) holding one, its rank and position, and write the last good state
+  !> good(4, n_owned) of step k_good as a frame. Collective.
+  subroutine stop_nonfinite(this, k, t, bad, good, k_good, t_good, stat, msg)
     type(simulation_t), intent(inout) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t
+    integer(i8), intent(in) :: k, k_good
+    real(wp), intent(in) :: t, t_good
+    real(wp), intent(in) :: bad(:, :), good(:, :)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer(i8) :: first, mine
@@ -719,7 +738,7 @@ contains
     character(len=:), allocatable :: msg2
     mine = huge(1_i8)
     do l = 1, this%lat%n_owned
-      if (.not. all(ieee_is_finite(this%st%y(1:4, l)))) then
+      if (.not. all(ieee_is_finite(bad(1:4, l)))) then
         mine = this%lat%gid(l)
         exit
       end if
@@ -737,21 +756,19 @@ contains
             ' s, first at node '//itoa(first)//' (x = '//rtoa(xy(1))//', y = '//rtoa(xy(2))// &
             ' m) on rank '//itoa(owner)
     end if
-    ! where the growth was largest at the last good check
+    ! where the growth was largest in the last good state
     big = [-1.0_wp, -1.0_wp]
     do l = 1, this%lat%n_owned
-      if (norm2(this%snap(3:4, l)) > big(1)) big = [norm2(this%snap(3:4, l)), &
-                                                    real(this%lat%gid(l), wp)]
+      if (norm2(good(3:4, l)) > big(1)) big = [norm2(good(3:4, l)), real(this%lat%gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, big, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
     xy = this%grid%node_xy(int(big(2), i8))
     msg = msg//', with dt = '//rtoa(this%dt)//' s (stability limit '//rtoa(this%dt_limit)// &
-          ' s); at the last good check (step '//itoa(this%snap_step)//', written as the last '// &
+          ' s); in the last good state (step '//itoa(k_good)//', written as the last '// &
           'frame) the fastest node was '//itoa(int(big(2), i8))//' (x = '//rtoa(xy(1))// &
           ', y = '//rtoa(xy(2))//' m, speed '//rtoa(big(1))//' m/s)'
     call flush_history(this, stat2)
-    call this%out%write_frame(this%snap_step, this%snap_time, this%snap(1:2, :), &
-                              this%snap(3:4, :), stat2, msg2)
+    call this%out%write_frame(k_good, t_good, good(1:2, :), good(3:4, :), stat2, msg2)
   end subroutine stop_nonfinite
 
   !> Energy guard after a history sample: warn once above energy_warn, stop above

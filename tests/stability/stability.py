@@ -164,7 +164,9 @@ def cmd_aspect(args) -> None:
 
 def cmd_dt_limit(args) -> None:
     """dt = 0.99 x the limit for 1e5 steps: bounded energy; 1.05 x: refused up front, or, with
-    allow_unstable_dt, stopped by the guards within a few steps with a message naming where."""
+    allow_unstable_dt, stopped by the guards within a few steps with a message naming where;
+    1.5 x with no history sample in reach: stopped by the NaN/Inf guard, the last good state
+    (RK4: the previous step; Verlet: the last check) written as the last frame."""
     small = dict(L=0.2, h=0.02, nx=20, ny=2)
     # the limit of this grid, from a first run's report
     p, _ = run_scene(args, "dt_probe", "t_end = 1.0e-5", CLAMP_TIP.format(tf=""), **small)
@@ -206,6 +208,29 @@ def cmd_dt_limit(args) -> None:
             frames = sorted(k for k in f["frames"] if k.startswith("frame_"))
             finite = bool(np.all(np.isfinite(f[f"frames/{frames[-1]}/displacement"][:])))
         rg.check(finite, "the last frame written is finite")
+    # far above the limit with no history sample in reach: the NaN/Inf guard stops the run
+    # (RK4 does not accept the non-finite state; the previous step is the last frame)
+    for integ in ("rk4", "verlet"):
+        lim = limit if integ == "rk4" else limit / math.sqrt(2.0)
+        p, out = run_scene(args, f"dt_nan_{integ}",
+                           f"t_end = 1.0e-2, dt = {1.5 * lim:.9e}, allow_unstable_dt = .true., "
+                           f"integrator = '{integ}', history_interval = 1.0e-2, "
+                           f"output_interval = 1.0e-2", CLAMP_TIP.format(tf=""),
+                           expect_ok=False, **small)
+        errs = [l for l in p.stderr.splitlines() if l.startswith("iem: error")]
+        ok = p.returncode != 0 and len(errs) == 1 and "non-finite values at step" in errs[0]
+        last_step, finite, step = -1, False, -1
+        if ok:
+            step = int(errs[0].split("non-finite values at step ")[1].split(",")[0])
+            with h5py.File(out, "r") as f:
+                frames = sorted(k for k in f["frames"] if k.startswith("frame_"))
+                last_step = int(f[f"frames/{frames[-1]}"].attrs["step"])
+                finite = bool(np.all(np.isfinite(f[f"frames/{frames[-1]}/displacement"][:])))
+        rg.check(ok and finite and (last_step == step - 1 if integ == "rk4" else
+                                    step - 10 <= last_step < step),
+                 f"{integ}, dt = 1.5 x limit: stopped by the NaN guard at step {step}; last "
+                 f"frame finite, of step {last_step} (the last good state)")
+        result(f"dt 1.5 limit {integ} NaN guard step", step)
 
 
 def cmd_shock(args) -> None:
