@@ -45,7 +45,11 @@ program iem_main
   end if
   call sim%run(stat, msg)
   call sim%finish(stat == 0, stat2, msg2)
-  if (stat /= 0) then
+  if (stat == 4) then
+    ! stopped by the scheduler's signal after a checkpoint: exit status 4 asks for a resubmit
+    call log_info(msg)
+    call finish(4)
+  else if (stat /= 0) then
     call log_error(msg)
     call finish(3)
   end if

@@ -27,6 +27,11 @@ module iem_config
     integer :: check_interval = 10
     !> Accept a given dt above the stability limit (with a warning) instead of refusing it.
     logical :: allow_unstable_dt = .false.
+    !> Checkpoints: simulated time between them (0: only on SIGTERM/SIGUSR1), the file
+    !> ('' : output_file with the extension .chk), and the checkpoint to continue from.
+    real(wp) :: checkpoint_interval = 0.0_wp
+    character(len=path_len) :: checkpoint_file = ''
+    character(len=path_len) :: restart = ''
     character(len=path_len) :: output_file = 'iem_out.h5'
     logical :: overwrite = .false.
   end type run_config_t

@@ -267,14 +267,14 @@ contains
     character(len=:), allocatable, intent(out) :: iomsg
     character(len=16) :: analysis, integrator
     real(wp) :: t_end, dt, dt_safety, output_interval, history_interval, progress_interval
-    real(wp) :: energy_warn, energy_stop
+    real(wp) :: energy_warn, energy_stop, checkpoint_interval
     integer :: check_interval
-    character(len=path_len) :: output_file
+    character(len=path_len) :: output_file, checkpoint_file, restart
     logical :: overwrite, allow_unstable_dt
     character(len=256) :: m
     namelist /run/ analysis, integrator, t_end, dt, dt_safety, output_interval, &
       history_interval, progress_interval, output_file, overwrite, energy_warn, energy_stop, &
-      check_interval, allow_unstable_dt
+      check_interval, allow_unstable_dt, checkpoint_interval, checkpoint_file, restart
     analysis = cfg%run%analysis; integrator = cfg%run%integrator
     t_end = unset_real; dt = cfg%run%dt
     dt_safety = cfg%run%dt_safety; output_interval = cfg%run%output_interval
@@ -282,6 +282,8 @@ contains
     output_file = cfg%run%output_file; overwrite = cfg%run%overwrite
     energy_warn = cfg%run%energy_warn; energy_stop = cfg%run%energy_stop
     check_interval = cfg%run%check_interval; allow_unstable_dt = cfg%run%allow_unstable_dt
+    checkpoint_interval = cfg%run%checkpoint_interval
+    checkpoint_file = cfg%run%checkpoint_file; restart = cfg%run%restart
     m = ''
     read(chunk, nml=run, iostat=ios, iomsg=m)
     iomsg = trim(m)
@@ -292,6 +294,8 @@ contains
     cfg%run%output_file = output_file; cfg%run%overwrite = overwrite
     cfg%run%energy_warn = energy_warn; cfg%run%energy_stop = energy_stop
     cfg%run%check_interval = check_interval; cfg%run%allow_unstable_dt = allow_unstable_dt
+    cfg%run%checkpoint_interval = checkpoint_interval
+    cfg%run%checkpoint_file = checkpoint_file; cfg%run%restart = restart
   end subroutine parse_run
 
   subroutine read_run(text, g, cfg, stat, msg)
@@ -305,8 +309,8 @@ contains
     character(len=*), parameter :: label = '&run'
     call check_keys(text, g, [character(len=20) :: 'analysis', 'integrator', 't_end', 'dt', &
       'dt_safety', 'output_interval', 'history_interval', 'progress_interval', 'output_file', &
-      'overwrite', 'energy_warn', 'energy_stop', 'check_interval', 'allow_unstable_dt'], &
-      label, stat, msg)
+      'overwrite', 'energy_warn', 'energy_stop', 'check_interval', 'allow_unstable_dt', &
+      'checkpoint_interval', 'checkpoint_file', 'restart'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_run(chunk, cfg, stat, iomsg)
@@ -352,25 +356,44 @@ contains
       else if (r%energy_stop > 0.0_wp .and. r%energy_warn > r%energy_stop) then
         call bad(label, 'energy_warn', rtoa(r%energy_warn), 'must not exceed energy_stop = '// &
                  rtoa(r%energy_stop), stat, msg)
+      else if (.not. (r%checkpoint_interval >= 0.0_wp)) then
+        call bad(label, 'checkpoint_interval', rtoa(r%checkpoint_interval), &
+                 'must be >= 0 [s] (0: checkpoints only on SIGTERM/SIGUSR1)', stat, msg)
       else if (r%check_interval < 1) then
         call bad(label, 'check_interval', itoa(r%check_interval), 'must be >= 1 [steps]', &
                  stat, msg)
       else if (len_trim(r%output_file) == 0) then
         call bad(label, 'output_file', "''", 'must name a file', stat, msg)
       end if
+      if (len_trim(r%checkpoint_file) == 0) r%checkpoint_file = with_extension(r%output_file, &
+                                                                          '.chk')
       if (r%output_interval == 0.0_wp) r%output_interval = r%t_end/20.0_wp
       if (r%history_interval == 0.0_wp) r%history_interval = r%t_end/1000.0_wp
     end associate
   end subroutine read_run
+
+  !> path with the extension of its file name replaced by ext (or ext appended).
+  pure function with_extension(path, ext) result(out)
+    character(len=*), intent(in) :: path, ext
+    character(len=:), allocatable :: out
+    integer :: dot, slash
+    slash = index(trim(path), '/', back=.true.)
+    dot = index(trim(path), '.', back=.true.)
+    if (dot > slash + 1) then
+      out = path(1:dot - 1)//ext
+    else
+      out = trim(path)//ext
+    end if
+  end function with_extension
 
   !> The first variable of &run (group g) that only a dynamic run uses, or '' if none.
   function dynamic_only(text, g) result(name)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
     character(len=:), allocatable :: name
-    character(len=*), parameter :: vars(*) = [character(len=17) :: 'integrator', 'dt', &
+    character(len=*), parameter :: vars(*) = [character(len=19) :: 'integrator', 'dt', &
       'dt_safety', 'output_interval', 'history_interval', 'energy_warn', 'energy_stop', &
-      'check_interval', 'allow_unstable_dt']
+      'check_interval', 'allow_unstable_dt', 'checkpoint_interval', 'checkpoint_file', 'restart']
     integer :: k
     name = ''
     associate(grp => text%groups(g))
@@ -1014,6 +1037,11 @@ contains
             trim(cfg%run%analysis)//"'; remove &static or set analysis = 'static' in &run"
       return
     end if
+    if (len_trim(cfg%run%restart) > 0 .and. cfg%run%analysis == 'static') then
+      call bad('&run', 'restart', "'"//trim(cfg%run%restart)//"'", "is only for analysis = "// &
+               "'dynamic' (a static run is not checkpointed yet)", stat, msg)
+      return
+    end if
     if (cfg%initial%given .and. cfg%run%analysis == 'static') then
       stat = 1
       msg = "&initial is only for analysis = 'dynamic' (a static run starts at rest)"
@@ -1072,7 +1100,14 @@ contains
       end if
       if (code == 0) then
         inquire(file=path, exist=there)
-        if (there .and. .not. cfg%run%overwrite) code = 2
+        if (len_trim(cfg%run%restart) > 0) then
+          ! a restart appends to the output of the interrupted run
+          if (.not. there) code = 3
+          inquire(file=trim(cfg%run%restart), exist=there)
+          if (code == 0 .and. .not. there) code = 4
+        else if (there .and. .not. cfg%run%overwrite) then
+          code = 2
+        end if
       end if
     end if
     call MPI_Bcast(code, 1, MPI_INTEGER, 0, comm)
@@ -1084,6 +1119,12 @@ contains
     else if (code == 2) then
       msg = trim(cfg%input_file)//": &run: output_file = '"//path// &
             "' exists; set overwrite = .true. to replace it"
+    else if (code == 3) then
+      msg = trim(cfg%input_file)//": &run: output_file = '"//path//"' does not exist: a "// &
+            "restart appends to the output of the run it continues"
+    else if (code == 4) then
+      msg = trim(cfg%input_file)//": &run: restart = '"//trim(cfg%run%restart)// &
+            "': no such file"
     end if
   end subroutine check_files
 

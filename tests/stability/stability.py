@@ -13,6 +13,8 @@ figure, quoted in docs/stability.md):
   spin            a free block spun at 100 rad/s for 10 revolutions keeps its shape and energy
   drift           (long) undamped energy drift per period, RK4 and Verlet at several dt
   kill_rank       one of two ranks killed mid-run: the job ends, the output stays readable
+  restart         checkpoint and restart: bitwise continuation, other rank counts, SIGUSR1
+  restart_errors  bad restarts: not a checkpoint, another model, missing files
 
 Usage: stability.py CASE --iem build/iem --mpiexec mpirun [--mpiexec-flags=--oversubscribe]
 """
@@ -337,16 +339,18 @@ def cmd_drift(args) -> None:
 
 def cmd_kill_rank(args) -> None:
     """A fault: one of two ranks is killed (SIGKILL) in the middle of a run. The job must end
-    on its own (Open MPI aborts the others; no hang), with a non-zero exit status, and the
-    output written so far must stay readable (every frame is flushed when written)."""
+    on its own (Open MPI aborts the others; no hang), with a non-zero exit status, the output
+    written so far must stay readable (every frame is flushed when written), and the last
+    checkpoint must be usable: the run continued from it completes."""
     import os
     import signal
     import subprocess
     import time
     work = rg.scratch("stability_kill_rank")
     nml = work / "case.nml"
-    nml.write_text(BEAM.format(run="t_end = 10.0, output_interval = 1.0e-3, history_interval = "
-                                   "1.0e-4, progress_interval = 1.0e6",
+    nml.write_text(BEAM.format(run="t_end = 1.0, output_interval = 1.0e-3, history_interval = "
+                                   "1.0e-4, progress_interval = 1.0e6, checkpoint_interval = "
+                                   "2.0e-3",
                                extra=CLAMP_TIP.format(tf=", time_function = 'step'"), L=1.0,
                                h=0.1, nx=80, ny=8, plane="stress", cell="paper", nu=NU,
                                ymid=0.05))
@@ -398,19 +402,173 @@ def cmd_kill_rank(args) -> None:
         result("kill one rank: frames readable", n)
     except OSError as exc:
         rg.check(False, f"the output stays readable ({exc})")
+    chk = work / "out.chk"
+    rg.check(chk.exists(), "the last checkpoint is there")
+    text = nml.read_text().replace("checkpoint_interval = 2.0e-3",
+                                   "checkpoint_interval = 2.0e-3, restart = 'out.chk'")
+    (work / "again.nml").write_text(text)
+    p = rg.run_ok(args, 2, work / "again.nml", work, "the run continued from the last checkpoint")
+    if p is not None:
+        with h5py.File(out, "r") as f:
+            done = int(f.attrs["complete"]) == 1
+            t_last = float(f["history/time"][-1])
+        rg.check(done and abs(t_last - 1.0) < 1e-9, f"the continued run completes (t = {t_last})")
+
+
+def _files_equal(a: Path, b: Path, tol: float) -> tuple[bool, float]:
+    """Histories, frame steps and the last frame of two outputs: equal to tol (relative)."""
+    worst = 0.0
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        keys = ["history/time", "history/step", "frames/step", "frames/time"]
+        keys += [f"history/probes/{p}/{q}" for p in fa["history/probes"]
+                 for q in ("displacement", "velocity")]
+        keys += [f"history/energy/{e}" for e in ("kinetic", "strain", "external_work", "damping")]
+        if "springs" in fa["history"]:
+            keys += [f"history/springs/{p}/{q}" for p in fa["history/springs"]
+                     for q in ("strain", "stress")]
+        frames = sorted(k for k in fa["frames"] if k.startswith("frame_"))
+        keys += [f"frames/{frames[-1]}/displacement", f"frames/{frames[-1]}/velocity"]
+        for k in keys:
+            x, y = fa[k][:], fb[k][:]
+            if x.shape != y.shape:
+                return False, float("inf")
+            scale = max(float(np.max(np.abs(x))), 1e-300)
+            worst = max(worst, float(np.max(np.abs(x - y))) / scale)
+        ok = worst <= tol and int(fb.attrs["complete"]) == 1
+    return ok, worst
+
+
+RESTART_CASES = {
+    "elastic_rk4": ("", "rk4"),
+    "nonlinear_verlet": ("  nonlinear = .true., tensile_strength = 3.0e6, compressive_strength = "
+                         "30.0e6, shear_strength = 6.0e6\n", "verlet"),
+    "capped_rk4": ("", "rk4"),
+}
+
+
+def restart_scene(name: str, out: str, t_end: float, extra_run: str) -> str:
+    material, integ = RESTART_CASES[name]
+    damping = ("&damping\n  kind = 'capped', ratio = 0.03, frequency = 52.0, cap_frequency = "
+               "520.0\n/\n" if name == "capped_rk4" else
+               "&damping\n  kind = 'mass', ratio = 0.03, frequency = 52.0\n/\n")
+    return (f"&run\n  t_end = {t_end}, history_interval = 2.0e-4, output_interval = 2.0e-3\n"
+            f"  integrator = '{integ}', output_file = '{out}'{extra_run}\n/\n"
+            "&geometry\n  length = 1.0, height = 0.1, thickness = 0.1, nx = 40, ny = 4\n/\n"
+            f"&material\n  E = 25.0e9, nu = 0.2, density = 2400.0\n{material}/\n{damping}"
+            "&bc\n  where = 'left', dofs = 'xy'\n/\n"
+            "&load\n  kind = 'edge', where = 'right', traction = 0.0, -0.7e5, time_function = "
+            "'step'\n/\n&probe\n  name = 'tip', x = 1.0, y = 0.05, springs = .true.\n/\n")
+
+
+def cmd_restart(args) -> None:
+    """Checkpoint and restart: a run interrupted at a checkpoint and continued with
+    restart = 'file' gives an output bitwise identical to an uninterrupted run on the same
+    rank count (histories, frames), and equal to round-off on another rank count; the output
+    is appended (one history, no gap, no duplicate). Cases: elastic RK4, nonlinear springs
+    with velocity Verlet (spring history and rates in the checkpoint), capped damping (its
+    filter state). Also: SIGUSR1 to mpirun makes the run write a checkpoint and stop with
+    exit status 4, and the continued run equals the uninterrupted one."""
+    import os
+    import shutil
+    import signal
+    import subprocess
+    import time
+    for name in RESTART_CASES:
+        work = rg.scratch(f"restart_{name}")
+        (work / "full.nml").write_text(restart_scene(name, "full.h5", 0.02, ""))
+        (work / "a.nml").write_text(restart_scene(name, "a.h5", 0.02,
+                                                  ", checkpoint_interval = 0.0077"))
+        p1 = rg.run_ok(args, 2, work / "full.nml", work, f"{name}: uninterrupted run")
+        p2 = rg.run_ok(args, 2, work / "a.nml", work, f"{name}: run with checkpoints")
+        if p1 is None or p2 is None:
+            continue
+        # checkpoints at 0.0077 and 0.0154 s, the second overwriting the first in a.chk; the
+        # output a.h5 runs on to 0.02 s, so continuing cuts it back to the checkpoint first
+        marks = [l for l in p2.stdout.splitlines() if l.startswith("checkpoint:")]
+        rg.check(len(marks) == 2, f"{name}: two checkpoints written ({len(marks)})")
+        for ranks in (2, 1):
+            b = work / f"b{ranks}.h5"
+            shutil.copy(work / "a.h5", b)
+            (work / f"b{ranks}.nml").write_text(restart_scene(
+                name, b.name, 0.02, ", restart = 'a.chk'"))
+            p = rg.run_ok(args, ranks, work / f"b{ranks}.nml", work,
+                          f"{name}: restart on {ranks} rank(s)")
+            if p is None:
+                continue
+            tol = 0.0 if ranks == 2 else 1e-12
+            ok, worst = _files_equal(work / "full.h5", b, tol)
+            rg.check(ok, f"{name}: continued on {ranks} rank(s) equals the uninterrupted run to "
+                         f"{worst:.1e} (<= {tol:g}), output appended and complete")
+    # the scheduler's signal
+    work = rg.scratch("restart_signal")
+    (work / "full.nml").write_text(restart_scene("elastic_rk4", "full.h5", 0.4, ""))
+    (work / "s.nml").write_text(restart_scene("elastic_rk4", "s.h5", 0.4, ""))
+    rg.run_ok(args, 2, work / "full.nml", work, "signal: uninterrupted run")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    proc = subprocess.Popen(rg.mpi_command(args, 2, work / "s.nml"), cwd=work, env=env,
+                            text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    t0 = time.time()
+    while time.time() - t0 < 60 and not (work / "s.h5").exists():
+        time.sleep(0.2)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGUSR1)
+    out, err = proc.communicate(timeout=120)
+    rg.check(proc.returncode == 4 and (work / "s.chk").exists() and "stopped by signal" in out,
+             f"SIGUSR1: checkpoint written and the run stopped with exit status 4 "
+             f"(got {proc.returncode})")
+    (work / "s2.nml").write_text(restart_scene("elastic_rk4", "s.h5", 0.4,
+                                               ", restart = 's.chk'"))
+    if rg.run_ok(args, 2, work / "s2.nml", work, "signal: continued run") is not None:
+        ok, worst = _files_equal(work / "full.h5", work / "s.h5", 0.0)
+        rg.check(ok, f"signal: the continued run equals the uninterrupted one ({worst:.1e})")
+
+
+def cmd_restart_errors(args) -> None:
+    """Bad restarts: a file that is not a checkpoint, a checkpoint of another model, a missing
+    checkpoint, and a missing output to append to each stop before anything is written, with
+    one message naming &run restart, from rank 0, exit status 2, and the output unchanged."""
+    import hashlib
+    work = rg.scratch("restart_errors")
+    (work / "m.nml").write_text(restart_scene("elastic_rk4", "m.h5", 0.004,
+                                              ", checkpoint_interval = 0.002"))
+    rg.run_ok(args, 2, work / "m.nml", work, "a run that writes a checkpoint")
+    (work / "junk.chk").write_bytes(b"not a checkpoint" * 100)
+    other = restart_scene("elastic_rk4", "m.h5", 0.004, ", restart = 'm.chk'").replace(
+        "E = 25.0e9", "E = 30.0e9")
+    cases = {
+        "junk": (restart_scene("elastic_rk4", "m.h5", 0.004, ", restart = 'junk.chk'"),
+                 "is not an iem checkpoint file"),
+        "other_model": (other, "was written for a different model"),
+        "missing": (restart_scene("elastic_rk4", "m.h5", 0.004, ", restart = 'none.chk'"),
+                    "no such file"),
+        "no_output": (restart_scene("elastic_rk4", "gone.h5", 0.004, ", restart = 'm.chk'"),
+                      "does not exist: a restart appends"),
+    }
+    digest = hashlib.sha1((work / "m.h5").read_bytes()).hexdigest()
+    for name, (text, expect) in cases.items():
+        (work / f"{name}.nml").write_text(text)
+        p = rg.run_iem(args, 2, work / f"{name}.nml", work)
+        errs = [l for l in p.stderr.splitlines() if l.startswith("iem: error")]
+        same = hashlib.sha1((work / "m.h5").read_bytes()).hexdigest() == digest
+        rg.check(p.returncode == 2 and len(errs) == 1 and expect in errs[0] and "restart" in
+                 errs[0] and same and not (work / "gone.h5").exists(),
+                 f"{name}: exit {p.returncode}, one message naming restart ({expect}), output "
+                 f"unchanged")
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("case", choices=["incompressible", "aspect", "dt_limit", "shock", "spin",
-                                     "drift", "kill_rank"])
+                                     "drift", "kill_rank", "restart", "restart_errors"])
     ap.add_argument("--iem", required=True)
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="")
     args = ap.parse_args()
     {"incompressible": cmd_incompressible, "aspect": cmd_aspect, "dt_limit": cmd_dt_limit,
      "shock": cmd_shock, "spin": cmd_spin, "drift": cmd_drift,
-     "kill_rank": cmd_kill_rank}[args.case](args)
+     "kill_rank": cmd_kill_rank, "restart": cmd_restart,
+     "restart_errors": cmd_restart_errors}[args.case](args)
     if rg.FAILURES:
         print(f"{len(rg.FAILURES)} check(s) failed")
         return 1
