@@ -15,6 +15,7 @@ figure, quoted in docs/stability.md):
   kill_rank       one of two ranks killed mid-run: the job ends, the output stays readable
   restart         checkpoint and restart: bitwise continuation, other rank counts, SIGUSR1
   restart_errors  bad restarts: not a checkpoint, another model, missing files
+  jobs            the job scripts' continuation after a signal (jobs/resubmit.sh)
 
 Usage: stability.py CASE --iem build/iem --mpiexec mpirun [--mpiexec-flags=--oversubscribe]
 """
@@ -524,6 +525,56 @@ def cmd_restart(args) -> None:
         rg.check(ok, f"signal: the continued run equals the uninterrupted one ({worst:.1e})")
 
 
+def cmd_jobs(args) -> None:
+    """The job scripts' continuation logic (jobs/resubmit.sh, used by jobs/slurm_run.sh and
+    jobs/pbs_run.sh): after a run stopped by SIGUSR1 (exit 4) it writes a copy of the case
+    with restart = '<checkpoint>' and a continuation count, that copy completes the run
+    (equal to an uninterrupted one), and exit 0 asks for nothing more, other statuses fail."""
+    import os
+    import signal
+    import subprocess
+    import time
+    work = rg.scratch("jobs")
+    (work / "out").mkdir(exist_ok=True)
+    (work / "full.nml").write_text(restart_scene("elastic_rk4", "out/full.h5", 0.4, ""))
+    (work / "case.nml").write_text(restart_scene("elastic_rk4", "out/c.h5", 0.4, ""))
+    rg.run_ok(args, 2, work / "full.nml", work, "jobs: uninterrupted run")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", IEM_MAX_RESUBMITS="3")
+    script = ROOT / "jobs" / "resubmit.sh"
+
+    def after_run(case: str, status: int) -> subprocess.CompletedProcess:
+        return subprocess.run(["bash", "-c", f"source '{script}'; after_run '{case}' {status}"],
+                              cwd=work, env=env, text=True, capture_output=True)
+
+    proc = subprocess.Popen(rg.mpi_command(args, 2, work / "case.nml"), cwd=work, env=env,
+                            text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    t0 = time.time()
+    while time.time() - t0 < 60 and not (work / "out" / "c.h5").exists():
+        time.sleep(0.2)
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGUSR1)
+    proc.communicate(timeout=120)
+    p = after_run("case.nml", proc.returncode)
+    nxt = p.stdout.strip()
+    text = (work / nxt).read_text() if nxt and (work / nxt).exists() else ""
+    rg.check(proc.returncode == 4 and p.returncode == 0 and nxt == "case.restart.nml" and
+             "restart = 'out/c.chk'" in text and text.startswith("! iem continuation 1"),
+             f"exit 4 -> continuation case {nxt!r} with restart = 'out/c.chk'")
+    if text:
+        done = rg.run_ok(args, 2, work / nxt, work, "jobs: the continuation")
+        if done is not None:
+            ok, worst = _files_equal(work / "out" / "full.h5", work / "out" / "c.h5", 0.0)
+            rg.check(ok, f"jobs: the continued output equals the uninterrupted one ({worst:.1e})")
+        again = after_run(nxt, 4)
+        rg.check(again.returncode == 0 and again.stdout.strip() == "case.restart.nml" and
+                 (work / "case.restart.nml").read_text().startswith("! iem continuation 2"),
+                 "a second continuation counts 2 and keeps one restart line")
+    p0, p3 = after_run("case.nml", 0), after_run("case.nml", 3)
+    rg.check(p0.returncode == 0 and p0.stdout.strip() == "" and p3.returncode != 0,
+             "exit 0: nothing to resubmit; exit 3: no resubmission (failure)")
+
+
 def cmd_restart_errors(args) -> None:
     """Bad restarts: a file that is not a checkpoint, a checkpoint of another model, a missing
     checkpoint, and a missing output to append to each stop before anything is written, with
@@ -560,7 +611,7 @@ def cmd_restart_errors(args) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("case", choices=["incompressible", "aspect", "dt_limit", "shock", "spin",
-                                     "drift", "kill_rank", "restart", "restart_errors"])
+                                     "drift", "kill_rank", "restart", "restart_errors", "jobs"])
     ap.add_argument("--iem", required=True)
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="")
@@ -568,7 +619,7 @@ def main() -> int:
     {"incompressible": cmd_incompressible, "aspect": cmd_aspect, "dt_limit": cmd_dt_limit,
      "shock": cmd_shock, "spin": cmd_spin, "drift": cmd_drift,
      "kill_rank": cmd_kill_rank, "restart": cmd_restart,
-     "restart_errors": cmd_restart_errors}[args.case](args)
+     "restart_errors": cmd_restart_errors, "jobs": cmd_jobs}[args.case](args)
     if rg.FAILURES:
         print(f"{len(rg.FAILURES)} check(s) failed")
         return 1
