@@ -208,43 +208,15 @@ contains
     pgid = -1
     static_gid = -1
     work: block
-      if (.not. library_open) then
-        call h5open_f(ierr)
-        if (failed(this, ierr, 'h5open_f', 'the HDF5 library', stat, msg)) exit work
-        library_open = .true.
-      end if
-      this%real_mtype = h5kind_to_type(wp, H5_REAL_KIND)
-      this%int_mtype = h5kind_to_type(i8, H5_INTEGER_KIND)
-
-      call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, ierr)
-      if (failed(this, ierr, 'h5pcreate_f', 'file access list', stat, msg)) exit work
-      call h5pset_fapl_mpio_f(fapl, comm%MPI_VAL, MPI_INFO_NULL%MPI_VAL, ierr)
-      if (failed(this, ierr, 'h5pset_fapl_mpio_f', 'file access list', stat, msg)) exit work
-      ! 1.8 file format or later: compact/dense groups (many frames) and large attributes
-      ! (input_text above 64 KiB); still readable by any HDF5 since 1.8.
-      call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V18_F, H5F_LIBVER_LATEST_F, ierr)
-      if (failed(this, ierr, 'h5pset_libver_bounds_f', 'file access list', stat, msg)) exit work
-      call h5pset_all_coll_metadata_ops_f(fapl, .true., ierr)
-      if (failed(this, ierr, 'h5pset_all_coll_metadata_ops_f', 'file access list', stat, msg)) &
-        exit work
-      call h5pset_coll_metadata_write_f(fapl, .true., ierr)
-      if (failed(this, ierr, 'h5pset_coll_metadata_write_f', 'file access list', stat, msg)) &
-        exit work
+      call file_access_list(this, comm, fapl, stat, msg)
+      if (stat /= 0) exit work
       ! EXCL guards against a file that appeared since the check above.
       call h5fcreate_f(path, merge(H5F_ACC_TRUNC_F, H5F_ACC_EXCL_F, overwrite), this%file_id, &
         ierr, access_prp=fapl)
       if (failed(this, ierr, 'h5fcreate_f', '/', stat, msg)) exit work
       this%is_open = .true.
-
-      call h5pcreate_f(H5P_DATASET_XFER_F, this%xfer_id, ierr)
-      if (failed(this, ierr, 'h5pcreate_f', 'transfer list', stat, msg)) exit work
-      call h5pset_dxpl_mpio_f(this%xfer_id, H5FD_MPIO_COLLECTIVE_F, ierr)
-      if (failed(this, ierr, 'h5pset_dxpl_mpio_f', 'transfer list', stat, msg)) exit work
-      ! Every element of every dataset is written, so fill values would be wasted writes.
-      call h5pcreate_f(H5P_DATASET_CREATE_F, this%dcpl_id, ierr)
-      if (failed(this, ierr, 'h5pcreate_f', 'dataset creation list', stat, msg)) exit work
-      call h5pset_fill_time_f(this%dcpl_id, H5D_FILL_TIME_NEVER_F, ierr)
-      if (failed(this, ierr, 'h5pset_fill_time_f', 'dataset creation list', stat, msg)) exit work
+      call dataset_lists(this, stat, msg)
+      if (stat /= 0) exit work
 
       call put_attr(this, this%file_id, '/', 'program', stat, msg, text='iem')
       call put_attr(this, this%file_id, '/', 'file_type', stat, msg, text='iem_output')
@@ -951,34 +923,13 @@ contains
     attr = -1
     space = -1
     work: block
-      if (.not. library_open) then
-        call h5open_f(ierr)
-        if (failed(this, ierr, 'h5open_f', 'the HDF5 library', stat, msg)) exit work
-        library_open = .true.
-      end if
-      this%real_mtype = h5kind_to_type(wp, H5_REAL_KIND)
-      this%int_mtype = h5kind_to_type(i8, H5_INTEGER_KIND)
-      call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, ierr)
-      if (failed(this, ierr, 'h5pcreate_f', 'file access list', stat, msg)) exit work
-      call h5pset_fapl_mpio_f(fapl, comm%MPI_VAL, MPI_INFO_NULL%MPI_VAL, ierr)
-      if (failed(this, ierr, 'h5pset_fapl_mpio_f', 'file access list', stat, msg)) exit work
-      call h5pset_all_coll_metadata_ops_f(fapl, .true., ierr)
-      if (failed(this, ierr, 'h5pset_all_coll_metadata_ops_f', 'file access list', stat, msg)) &
-        exit work
-      call h5pset_coll_metadata_write_f(fapl, .true., ierr)
-      if (failed(this, ierr, 'h5pset_coll_metadata_write_f', 'file access list', stat, msg)) &
-        exit work
+      call file_access_list(this, comm, fapl, stat, msg)
+      if (stat /= 0) exit work
       call h5fopen_f(path, H5F_ACC_RDWR_F, this%file_id, ierr, access_prp=fapl)
       if (failed(this, ierr, 'h5fopen_f', '/', stat, msg)) exit work
       this%is_open = .true.
-      call h5pcreate_f(H5P_DATASET_XFER_F, this%xfer_id, ierr)
-      if (failed(this, ierr, 'h5pcreate_f', 'transfer list', stat, msg)) exit work
-      call h5pset_dxpl_mpio_f(this%xfer_id, H5FD_MPIO_COLLECTIVE_F, ierr)
-      if (failed(this, ierr, 'h5pset_dxpl_mpio_f', 'transfer list', stat, msg)) exit work
-      call h5pcreate_f(H5P_DATASET_CREATE_F, this%dcpl_id, ierr)
-      if (failed(this, ierr, 'h5pcreate_f', 'dataset creation list', stat, msg)) exit work
-      call h5pset_fill_time_f(this%dcpl_id, H5D_FILL_TIME_NEVER_F, ierr)
-      if (failed(this, ierr, 'h5pset_fill_time_f', 'dataset creation list', stat, msg)) exit work
+      call dataset_lists(this, stat, msg)
+      if (stat /= 0) exit work
       ! incomplete again until this run ends normally
       call h5aopen_f(this%file_id, 'complete', attr, ierr)
       if (failed(this, ierr, 'h5aopen_f', '/ attribute complete', stat, msg)) exit work
@@ -1103,6 +1054,55 @@ contains
     class(h5_output_t), intent(in) :: this
     n = this%n_frames
   end function h5_output_frames_written
+
+  !> Opens the HDF5 library if needed, sets the memory types, and makes the file access list
+  !> for parallel I/O on comm with collective metadata (the caller closes fapl).
+  subroutine file_access_list(this, comm, fapl, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    type(MPI_Comm), intent(in) :: comm
+    integer(HID_T), intent(inout) :: fapl
+    integer, intent(inout) :: stat
+    character(len=:), allocatable, intent(inout) :: msg
+    integer :: ierr
+    if (.not. library_open) then
+      call h5open_f(ierr)
+      if (failed(this, ierr, 'h5open_f', 'the HDF5 library', stat, msg)) return
+      library_open = .true.
+    end if
+    this%real_mtype = h5kind_to_type(wp, H5_REAL_KIND)
+    this%int_mtype = h5kind_to_type(i8, H5_INTEGER_KIND)
+    call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, ierr)
+    if (failed(this, ierr, 'h5pcreate_f', 'file access list', stat, msg)) return
+    call h5pset_fapl_mpio_f(fapl, comm%MPI_VAL, MPI_INFO_NULL%MPI_VAL, ierr)
+    if (failed(this, ierr, 'h5pset_fapl_mpio_f', 'file access list', stat, msg)) return
+    ! 1.8 file format or later: compact/dense groups (many frames) and large attributes
+    ! (input_text above 64 KiB); still readable by any HDF5 since 1.8.
+    call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V18_F, H5F_LIBVER_LATEST_F, ierr)
+    if (failed(this, ierr, 'h5pset_libver_bounds_f', 'file access list', stat, msg)) return
+    call h5pset_all_coll_metadata_ops_f(fapl, .true., ierr)
+    if (failed(this, ierr, 'h5pset_all_coll_metadata_ops_f', 'file access list', stat, msg)) &
+      return
+    call h5pset_coll_metadata_write_f(fapl, .true., ierr)
+    if (failed(this, ierr, 'h5pset_coll_metadata_write_f', 'file access list', stat, msg)) &
+      return
+  end subroutine file_access_list
+
+  !> The collective transfer list and the dataset creation list (no fill values: every
+  !> element of every dataset is written) of an open file.
+  subroutine dataset_lists(this, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    integer, intent(inout) :: stat
+    character(len=:), allocatable, intent(inout) :: msg
+    integer :: ierr
+    call h5pcreate_f(H5P_DATASET_XFER_F, this%xfer_id, ierr)
+    if (failed(this, ierr, 'h5pcreate_f', 'transfer list', stat, msg)) return
+    call h5pset_dxpl_mpio_f(this%xfer_id, H5FD_MPIO_COLLECTIVE_F, ierr)
+    if (failed(this, ierr, 'h5pset_dxpl_mpio_f', 'transfer list', stat, msg)) return
+    call h5pcreate_f(H5P_DATASET_CREATE_F, this%dcpl_id, ierr)
+    if (failed(this, ierr, 'h5pcreate_f', 'dataset creation list', stat, msg)) return
+    call h5pset_fill_time_f(this%dcpl_id, H5D_FILL_TIME_NEVER_F, ierr)
+    if (failed(this, ierr, 'h5pset_fill_time_f', 'dataset creation list', stat, msg)) return
+  end subroutine dataset_lists
 
   !> Writes the settings of a static run as attributes of /history/static; collective, the
   !> same values on every rank.
