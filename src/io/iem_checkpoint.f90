@@ -152,9 +152,12 @@ contains
           read(ios, iostat=stat) ints
           if (stat == 0) read(ios, iostat=stat) reals
           close(ios)
+          ! too short for a header, or not ours
+          if (stat /= 0 .or. ints(1) /= checkpoint_magic) stat = 2
+        else
+          stat = 1
         end if
       end if
-      if (stat == 0 .and. ints(1) /= checkpoint_magic) stat = 2
     end if
     call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
     if (stat == 1) then
