@@ -244,7 +244,7 @@ contains
     integer(i8) :: k, k_first
     integer :: sig
     real(wp) :: t, t_prev, wall0, wall_last, next_report
-    logical :: diverged, finite
+    logical :: diverged, finite, due
 
     call open_output(this, stat, msg)
     if (stat /= 0) return
@@ -291,8 +291,12 @@ contains
           sig = signal_caught()
           call MPI_Allreduce(MPI_IN_PLACE, sig, 1, MPI_INTEGER, MPI_MAX, this%comm)
         end if
-        if (sig /= 0 .or. (this%cfg%run%checkpoint_interval > 0.0_wp .and. crossed(t_prev, t, &
-            this%cfg%run%checkpoint_interval))) then
+        due = sig /= 0
+        ! (no short-circuit in Fortran: test the interval before dividing by it)
+        if (this%cfg%run%checkpoint_interval > 0.0_wp) then
+          if (crossed(t_prev, t, this%cfg%run%checkpoint_interval)) due = .true.
+        end if
+        if (due) then
           call write_checkpoint(this, k, t, stat, msg)
           if (stat /= 0) return
           if (sig /= 0) then
