@@ -212,7 +212,10 @@ def cmd_dt_limit(args) -> None:
             finite = bool(np.all(np.isfinite(f[f"frames/{frames[-1]}/displacement"][:])))
         rg.check(finite, "the last frame written is finite")
     # far above the limit with no history sample in reach: the NaN/Inf guard stops the run
-    # (RK4 does not accept the non-finite state; the previous step is the last frame)
+    # (RK4 does not accept the non-finite state; the previous step is the last frame). A
+    # Debug build traps the overflow first (-ffpe-trap): then only a non-zero exit is asked.
+    cache = Path(args.iem).resolve().parent / "CMakeCache.txt"
+    traps = cache.exists() and "CMAKE_BUILD_TYPE:STRING=Debug" in cache.read_text()
     for integ in ("rk4", "verlet"):
         lim = limit if integ == "rk4" else limit / math.sqrt(2.0)
         p, out = run_scene(args, f"dt_nan_{integ}",
@@ -220,6 +223,10 @@ def cmd_dt_limit(args) -> None:
                            f"integrator = '{integ}', history_interval = 1.0e-2, "
                            f"output_interval = 1.0e-2", CLAMP_TIP.format(tf=""),
                            expect_ok=False, **small)
+        if traps:
+            rg.check(p.returncode != 0, f"{integ}, dt = 1.5 x limit (Debug build): stopped, "
+                                        f"exit {p.returncode}")
+            continue
         errs = [l for l in p.stderr.splitlines() if l.startswith("iem: error")]
         ok = p.returncode != 0 and len(errs) == 1 and "non-finite values at step" in errs[0]
         last_step, finite, step = -1, False, -1
