@@ -776,9 +776,7 @@ contains
     real(wp), intent(in) :: strain(:, :, :), stress(:, :, :)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    real(wp), allocatable :: buf(:, :)
-    integer(HID_T) :: fspace, mspace
-    integer :: p, ierr
+    integer :: p
 
     stat = 0
     msg = ''
@@ -789,35 +787,12 @@ contains
       msg = 'iem_h5_output: write_spring_history: array shapes do not match the spring probes'
       return
     end if
-    allocate(buf(12, n))
-    fspace = -1
-    mspace = -1
-    work: block
-      do p = 1, size(this%spring_e_id)
-        call prepare_append(this, this%spring_e_id(p), trim(this%spring_path(p))//'/strain', &
-          12, this%n_spring_samples, int(n, i8), fspace, mspace, stat, msg)
-        if (stat /= 0) exit work
-        buf = strain(:, p, :n)
-        call h5dwrite_f(this%spring_e_id(p), this%real_mtype, buf, &
-          [12_HSIZE_T, int(n, HSIZE_T)], ierr, mspace, fspace, this%xfer_id)
-        if (failed(this, ierr, 'h5dwrite_f', trim(this%spring_path(p))//'/strain', stat, &
-          msg)) exit work
-        call close_space(this, fspace, stat, msg)
-        call close_space(this, mspace, stat, msg)
-        call prepare_append(this, this%spring_s_id(p), trim(this%spring_path(p))//'/stress', &
-          12, this%n_spring_samples, int(n, i8), fspace, mspace, stat, msg)
-        if (stat /= 0) exit work
-        buf = stress(:, p, :n)
-        call h5dwrite_f(this%spring_s_id(p), this%real_mtype, buf, &
-          [12_HSIZE_T, int(n, HSIZE_T)], ierr, mspace, fspace, this%xfer_id)
-        if (failed(this, ierr, 'h5dwrite_f', trim(this%spring_path(p))//'/stress', stat, &
-          msg)) exit work
-        call close_space(this, fspace, stat, msg)
-        call close_space(this, mspace, stat, msg)
-      end do
-    end block work
-    call close_space(this, fspace, stat, msg)
-    call close_space(this, mspace, stat, msg)
+    do p = 1, size(this%spring_e_id)
+      call append_block(this, this%spring_e_id(p), trim(this%spring_path(p))//'/strain', &
+        this%n_spring_samples, strain(:, p, :n), stat, msg)
+      call append_block(this, this%spring_s_id(p), trim(this%spring_path(p))//'/stress', &
+        this%n_spring_samples, stress(:, p, :n), stat, msg)
+    end do
     if (stat == 0) this%n_spring_samples = this%n_spring_samples + n
   end subroutine h5_output_write_spring_history
 
@@ -1103,6 +1078,34 @@ contains
     call h5pset_fill_time_f(this%dcpl_id, H5D_FILL_TIME_NEVER_F, ierr)
     if (failed(this, ierr, 'h5pset_fill_time_f', 'dataset creation list', stat, msg)) return
   end subroutine dataset_lists
+
+  !> Appends the samples data(ncomp, n) to the extendible series dset after its first `old`
+  !> samples (rank 0 writes; collective). Does nothing once stat /= 0.
+  subroutine append_block(this, dset, where, old, data, stat, msg)
+    class(h5_output_t), intent(in) :: this
+    integer(HID_T), intent(in) :: dset
+    character(len=*), intent(in) :: where
+    integer(i8), intent(in) :: old
+    real(wp), intent(in) :: data(:, :)
+    integer, intent(inout) :: stat
+    character(len=:), allocatable, intent(inout) :: msg
+    real(wp), allocatable :: buf(:, :)
+    integer(HID_T) :: fspace, mspace
+    integer :: ierr
+    if (stat /= 0) return
+    fspace = -1
+    mspace = -1
+    buf = data
+    call prepare_append(this, dset, where, size(data, 1), old, size(data, 2, kind=i8), fspace, &
+      mspace, stat, msg)
+    if (stat == 0) then
+      call h5dwrite_f(dset, this%real_mtype, buf, shape(buf, HSIZE_T), ierr, mspace, fspace, &
+        this%xfer_id)
+      if (failed(this, ierr, 'h5dwrite_f', where, stat, msg)) continue
+    end if
+    call close_space(this, fspace, stat, msg)
+    call close_space(this, mspace, stat, msg)
+  end subroutine append_block
 
   !> Writes the settings of a static run as attributes of /history/static; collective, the
   !> same values on every rank.
