@@ -3,6 +3,7 @@
 module iem_namelist_text
   use mpi_f08, only: MPI_Comm, MPI_Bcast, MPI_INTEGER, MPI_CHARACTER, MPI_Comm_rank
   use iem_strings, only: itoa
+  use iem_paths, only: why_not_readable
   implicit none
   private
   public :: nml_text_t, nml_group_t, line_len, key_len
@@ -15,7 +16,11 @@ module iem_namelist_text
     integer :: first_line = 0, first_col = 0, last_line = 0, last_col = 0
     integer :: n_keys = 0
     character(len=key_len), allocatable :: keys(:)
+    !> The subscript written after each key ('(1)' for box(1) = ...; '' for the whole array).
+    character(len=key_len), allocatable :: subs(:)
     integer, allocatable :: key_lines(:)
+    !> Column of the '=' of each assignment on its line.
+    integer, allocatable :: key_cols(:)
   end type nml_group_t
 
   !> The whole input file and its groups.
@@ -30,6 +35,7 @@ module iem_namelist_text
     procedure :: scan => nml_text_scan
     procedure :: chunk => nml_text_chunk
     procedure :: joined => nml_text_joined
+    procedure :: value => nml_text_value
   end type nml_text_t
 
 contains
@@ -44,15 +50,25 @@ contains
     integer :: rank, unit, ios, info(2), n
     character(len=line_len + 1) :: buf
     character(len=256) :: iom
+    character(len=:), allocatable :: why
 
     call MPI_Comm_rank(comm, rank)
     this%path = path
     info = 0
     msg = ''
     if (rank == 0) then
-      open(newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=iom)
-      if (ios /= 0) then
+      ! a folder or a pipe would open, then read nothing or block: look first
+      why = why_not_readable(path)
+      if (len(why) == 0) then
+        open(newunit=unit, file=path, status='old', action='read', iostat=ios, iomsg=iom)
+        if (ios /= 0) why = trim(iom)
+      end if
+      if (len(why) > 0) then
         info(1) = 1
+        info(2) = 0
+        if (why == 'it is a folder') info(2) = 1
+        if (why(1:min(len(why), 17)) == 'it is not a regul') info(2) = 2
+        if (why == 'no such file') info(2) = 3
       else
         n = 0
         do
@@ -75,7 +91,18 @@ contains
     call MPI_Bcast(info, 2, MPI_INTEGER, 0, comm)
     stat = info(1)
     if (stat == 1) then
-      msg = "cannot open the input file '"//trim(path)//"'"
+      ! the reason travels as a code: rank 0 alone looked at the file
+      select case (info(2))
+      case (1)
+        msg = "cannot open the input file '"//trim(path)//"': it is a folder"
+      case (2)
+        msg = "cannot open the input file '"//trim(path)//"': it is not a regular file "// &
+              "(a device, pipe or socket)"
+      case (3)
+        msg = "cannot open the input file '"//trim(path)//"': no such file"
+      case default
+        msg = "cannot open the input file '"//trim(path)//"': it cannot be read"
+      end select
       return
     else if (stat == 2) then
       msg = "input file '"//trim(path)//"' has a line longer than 512 characters"
@@ -91,14 +118,27 @@ contains
     class(nml_text_t), intent(inout) :: this
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer :: l, i, n, j, k
+    integer :: l, i, n, j, k, j0
     logical :: in_group, in_quote
     character :: q, c
-    character(len=key_len) :: ident
+    character(len=key_len) :: ident, sub
     type(nml_group_t), allocatable :: tmp(:)
 
     stat = 0
     msg = ''
+    do l = 1, this%n_lines
+      ! a Windows line end is a blank; other control bytes would reach file names silently
+      do i = 1, len_trim(this%lines(l))
+        k = iachar(this%lines(l)(i:i))
+        if (k == 13) this%lines(l)(i:i) = ' '
+        if (k < 32 .and. k /= 9 .and. k /= 13) then
+          stat = 1
+          msg = 'line '//itoa(l)//', column '//itoa(i)//': a control character (byte '// &
+                itoa(k)//') is not allowed in an input file'
+          return
+        end if
+      end do
+    end do
     allocate(this%groups(8))
     this%n_groups = 0
     in_group = .false.
@@ -140,7 +180,7 @@ contains
               g%name = ident
               g%first_line = l
               g%first_col = i
-              allocate(g%keys(16), g%key_lines(16))
+              allocate(g%keys(16), g%subs(16), g%key_lines(16), g%key_cols(16))
               g%n_keys = 0
             end associate
             in_group = .true.
@@ -178,13 +218,16 @@ contains
           j = i
           call read_ident(this%lines(l), j, ident)
           k = j
+          sub = ''
           ! skip an array index such as box(1) and blanks
           if (k <= n) then
             if (this%lines(l)(k:k) == '(') then
+              j0 = k
               do while (k <= n)
                 if (this%lines(l)(k:k) == ')') exit
                 k = k + 1
               end do
+              sub = this%lines(l)(j0:min(k, n, j0 + key_len - 1))
               k = k + 1
             end if
           end if
@@ -193,7 +236,11 @@ contains
             k = k + 1
           end do
           if (k <= n) then
-            if (this%lines(l)(k:k) == '=') call add_key(this%groups(this%n_groups), ident, l)
+            if (this%lines(l)(k:k) == '=') then
+              call check_assignment(this, this%n_groups, ident, sub, l, k, stat, msg)
+              if (stat /= 0) return
+              call add_key(this%groups(this%n_groups), ident, sub, l, k)
+            end if
           end if
           i = j
           cycle
@@ -239,23 +286,106 @@ contains
     end do
   end function nml_text_joined
 
-  subroutine add_key(g, key, line)
+  subroutine add_key(g, key, sub, line, col)
     type(nml_group_t), intent(inout) :: g
-    character(len=*), intent(in) :: key
-    integer, intent(in) :: line
-    character(len=key_len), allocatable :: k2(:)
-    integer, allocatable :: l2(:)
+    character(len=*), intent(in) :: key, sub
+    integer, intent(in) :: line, col
+    character(len=key_len), allocatable :: k2(:), s2(:)
+    integer, allocatable :: l2(:), c2(:)
     if (g%n_keys == size(g%keys)) then
-      allocate(k2(2*g%n_keys), l2(2*g%n_keys))
+      allocate(k2(2*g%n_keys), s2(2*g%n_keys), l2(2*g%n_keys), c2(2*g%n_keys))
       k2(1:g%n_keys) = g%keys
+      s2(1:g%n_keys) = g%subs
       l2(1:g%n_keys) = g%key_lines
+      c2(1:g%n_keys) = g%key_cols
       call move_alloc(k2, g%keys)
+      call move_alloc(s2, g%subs)
       call move_alloc(l2, g%key_lines)
+      call move_alloc(c2, g%key_cols)
     end if
     g%n_keys = g%n_keys + 1
     g%keys(g%n_keys) = key
+    g%subs(g%n_keys) = sub
     g%key_lines(g%n_keys) = line
+    g%key_cols(g%n_keys) = col
   end subroutine add_key
+
+  !> The first value token of assignment k of group g, as written (up to a blank, ',' or '/').
+  function nml_text_value(this, g, k) result(token)
+    class(nml_text_t), intent(in) :: this
+    integer, intent(in) :: g, k
+    character(len=:), allocatable :: token
+    integer :: l, i, j
+    l = this%groups(g)%key_lines(k)
+    i = this%groups(g)%key_cols(k) + 1
+    do while (l <= this%n_lines)
+      do while (i <= len_trim(this%lines(l)))
+        if (this%lines(l)(i:i) /= ' ' .and. this%lines(l)(i:i) /= achar(9)) exit
+        i = i + 1
+      end do
+      if (i <= len_trim(this%lines(l))) exit
+      l = l + 1
+      i = 1
+    end do
+    token = ''
+    if (l > this%n_lines) return
+    j = scan(this%lines(l)(i:), ' ,/'//achar(9))
+    if (j == 0) then
+      token = trim(this%lines(l)(i:))
+    else
+      token = this%lines(l)(i:i + j - 2)
+    end if
+  end function nml_text_value
+
+  !> Refuse an assignment key(sub) = ... (its '=' at column col of line l) of group g that
+  !> repeats an earlier one (the last would silently win), or that has no value.
+  subroutine check_assignment(this, g, key, sub, l, col, stat, msg)
+    class(nml_text_t), intent(in) :: this
+    integer, intent(in) :: g, l, col
+    character(len=*), intent(in) :: key, sub
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: k
+    character :: c
+    stat = 0
+    msg = ''
+    associate(grp => this%groups(g))
+      do k = 1, grp%n_keys
+        if (grp%keys(k) /= key) cycle
+        if (len_trim(sub) > 0 .and. len_trim(grp%subs(k)) > 0 .and. grp%subs(k) /= sub) cycle
+        stat = 1
+        msg = 'line '//itoa(l)//': &'//trim(grp%name)//': '//trim(key)//trim(sub)// &
+              ' is given twice (first on line '//itoa(grp%key_lines(k))//')'
+        return
+      end do
+    end associate
+    c = next_nonblank(this, l, col)
+    if (c == ',' .or. c == '/' .or. c == '&' .or. c == '$' .or. c == ' ') then
+      stat = 1
+      msg = 'line '//itoa(l)//': &'//trim(this%groups(g)%name)//': '//trim(key)//trim(sub)// &
+            " has no value after '='"
+    end if
+  end subroutine check_assignment
+
+  !> The first non-blank character after column col of line l, outside comments, looking on
+  !> into the following lines; ' ' at the end of the file.
+  character function next_nonblank(this, l, col) result(c)
+    class(nml_text_t), intent(in) :: this
+    integer, intent(in) :: l, col
+    integer :: m, i
+    c = ' '
+    i = col + 1
+    do m = l, this%n_lines
+      if (m > l) i = 1
+      do while (i <= len_trim(this%lines(m)))
+        c = this%lines(m)(i:i)
+        if (c == '!') exit
+        if (c /= ' ' .and. c /= achar(9)) return
+        i = i + 1
+      end do
+      c = ' '
+    end do
+  end function next_nonblank
 
   !> Read a lower-cased identifier starting at position j; j ends just past it.
   subroutine read_ident(line, j, ident)

@@ -93,6 +93,9 @@ module iem_simulation
     procedure :: finish => simulation_finish
   end type simulation_t
 
+  !> Most steps a dynamic run may take: 2^53, where the time t + dt stops advancing.
+  real(wp), parameter :: max_steps = 9007199254740992.0_wp
+
 contains
 
   !> Build everything for the run; collective; stat /= 0 with msg on every rank on an error
@@ -188,7 +191,16 @@ contains
       else
         this%dt = cfg%run%dt_safety*this%dt_limit
       end if
-      ! whole number of steps to t_end: dt only shrinks
+      ! whole number of steps to t_end: dt only shrinks; a count past 2^53 cannot be kept in
+      ! the step counter's double-precision time (t + dt == t), nor run
+      if (.not. (this%dt > 0.0_wp .and. cfg%run%t_end/this%dt <= max_steps)) then
+        stat = 1
+        msg = trim(cfg%input_file)//': &run: t_end = '//rtoa(cfg%run%t_end)//' s needs '// &
+              rtoa(cfg%run%t_end/this%dt)//' steps of dt = '//rtoa(this%dt)//' s (omega_max = '// &
+              rtoa(this%omega_max)//' rad/s): more than 2^53 steps cannot be represented; '// &
+              'shorten t_end or coarsen the grid'
+        return
+      end if
       this%n_steps = max(1_i8, ceiling(cfg%run%t_end/this%dt*(1.0_wp - 1.0e-12_wp), i8))
       this%dt = cfg%run%t_end/real(this%n_steps, wp)
       if (len_trim(cfg%run%restart) > 0) then

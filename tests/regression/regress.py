@@ -444,43 +444,6 @@ def cmd_block(args: argparse.Namespace) -> None:
                            f"s = {peak / f:.2f} f (secant / initial stiffness {secant:.3f})")
 
 
-def cmd_input_errors(args: argparse.Namespace) -> None:
-    """Every malformed input exits non-zero with one message naming the problem, from rank 0
-    only, and writes no output file."""
-    corpus = sorted(Path(args.case).glob("*.nml"))
-    check(len(corpus) >= 10, f"corpus has {len(corpus)} cases")
-    for case in corpus:
-        work = scratch("input_errors/" + case.stem)
-        text = case.read_text()
-        m = re.search(r"^! expect: (.+)$", text, re.M)
-        if not m:
-            check(False, f"{case.name}: has an '! expect:' line")
-            continue
-        expect = m.group(1).strip()
-        shutil.copy(case, work / case.name)
-        for extra in re.findall(r"^! setup: touch (\S+)$", text, re.M):
-            (work / extra).write_text("do not overwrite me\n")
-        before = {p.name: p.read_bytes() for p in work.iterdir()}
-        p = run_iem(args, 2, work / case.name, work, timeout=60)
-        errors = [l for l in p.stderr.splitlines() if l.startswith("iem: error")]
-        after = {q.name: q.read_bytes() for q in work.iterdir()}
-        ok = (p.returncode != 0 and len(errors) == 1 and expect in errors[0]
-              and after == before)
-        check(ok, f"{case.name}: exit {p.returncode}, {len(errors)} error line(s), "
-                  f"names '{expect}', no file written or changed")
-        if not ok:
-            print("   stderr:", p.stderr.strip()[-1500:])
-            print("   files before/after:", sorted(before), sorted(after))
-        else:
-            print("   " + errors[0])
-    work = scratch("input_errors/missing_file")
-    p = run_iem(args, 2, work / "no_such_case.nml", work, timeout=60)
-    errors = [l for l in p.stderr.splitlines() if l.startswith("iem: error")]
-    check(p.returncode != 0 and len(errors) == 1 and "cannot open the input file" in errors[0]
-          and not any(work.iterdir()),
-          f"missing input file: exit {p.returncode}, {len(errors)} error line(s), nothing written")
-
-
 def main() -> int:
     """Parse arguments and run one regression check."""
     ap = argparse.ArgumentParser(description=__doc__)
@@ -501,8 +464,7 @@ def main() -> int:
     args.band_name = [f"{b:g}" for b in args.band]
     {"ranks": cmd_ranks, "cantilever": cmd_cantilever, "patch": cmd_patch,
      "static": cmd_static, "convergence": cmd_convergence, "three_point": cmd_three_point,
-     "block": cmd_block,
-     "input_errors": cmd_input_errors}[args.check](args)
+     "block": cmd_block}[args.check](args)
     if FAILURES:
         print(f"{len(FAILURES)} check(s) failed")
         return 1

@@ -1,0 +1,233 @@
+!> Checks and messages shared by the readers of the namelist groups: the standard message
+!> for a bad value, unknown variables, unreadable lines, finite and representable reals,
+!> logical values, node sets and time functions.
+module iem_input_checks
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use iem_kinds, only: wp
+  use iem_constants, only: unset_real
+  use iem_strings, only: itoa, rtoa, lower
+  use iem_config, only: node_set_spec_t, time_function_spec_t
+  use iem_namelist_text, only: nml_text_t, line_len
+  implicit none
+  private
+  public :: bad, check_keys, read_error, group_try, check_reals, check_logicals
+  public :: check_set, check_tf, real_max, real_min
+
+  !> Every real input is 0 or of magnitude in [real_min, real_max]: products and quotients of
+  !> a few inputs then stay finite and normal in double precision (docs/input.md).
+  real(wp), parameter :: real_max = 1.0e30_wp, real_min = 1.0e-30_wp
+
+  abstract interface
+    !> Read part of one group's text into throw-away variables; returns the iostat.
+    integer function group_try(part) result(ios)
+      import :: line_len
+      character(len=line_len), intent(in) :: part(:)
+    end function group_try
+  end interface
+
+contains
+
+  !> Compose the standard message for a bad value.
+  subroutine bad(label, var, value, why, stat, msg)
+    character(len=*), intent(in) :: label, var, value, why
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    stat = 1
+    if (len(value) > 0) then
+      msg = label//': '//var//' = '//value//' '//why
+    else
+      msg = label//': '//var//' '//why
+    end if
+  end subroutine bad
+
+  !> Check the variable names of group g against the allowed list.
+  subroutine check_keys(text, g, allowed, label, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: allowed(:), label
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: k
+    character(len=:), allocatable :: list
+    stat = 0
+    msg = ''
+    associate(grp => text%groups(g))
+      do k = 1, grp%n_keys
+        if (findloc(allowed, trim(grp%keys(k)), 1) == 0) then
+          list = trim(allowed(1))
+          block
+            integer :: j
+            do j = 2, size(allowed)
+              list = list//', '//trim(allowed(j))
+            end do
+          end block
+          stat = 1
+          msg = label//': unknown variable "'//trim(grp%keys(k))//'" on line '// &
+                itoa(grp%key_lines(k))//' (allowed: '//list//')'
+          return
+        end if
+      end do
+    end associate
+  end subroutine check_keys
+
+  !> Turn a failed namelist read into a message that names the line and its text.
+  subroutine read_error(text, g, label, iomsg, chunk, try, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: label, iomsg
+    character(len=line_len), intent(in) :: chunk(:)
+    procedure(group_try) :: try
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: bad
+    bad = find_bad_line(chunk, try)
+    if (bad > 0) then
+      msg = label//': cannot read line '//itoa(text%groups(g)%first_line + bad - 1)//' "'// &
+            trim(adjustl(chunk(bad)))//'": a value of the wrong type or too many values ('// &
+            trim(iomsg)//')'
+    else
+      msg = label//' (lines '//itoa(text%groups(g)%first_line)//'-'// &
+            itoa(text%groups(g)%last_line)//'): '//trim(iomsg)
+    end if
+  end subroutine read_error
+
+  !> The first line of a group's chunk whose inclusion makes the group unreadable (0: none).
+  integer function find_bad_line(chunk, try) result(bad)
+    character(len=line_len), intent(in) :: chunk(:)
+    procedure(group_try) :: try
+    character(len=line_len), allocatable :: part(:)
+    integer :: n, ios
+    bad = 0
+    do n = 1, size(chunk)
+      allocate(part(n + 1))
+      part(1:n) = chunk(1:n)
+      part(n + 1) = '/'
+      ios = try(part)
+      deallocate(part)
+      if (ios /= 0) then
+        bad = n
+        return
+      end if
+    end do
+  end function find_bad_line
+
+  !> Refuse a real variable of group g that the input gives as NaN, Inf or a magnitude outside
+  !> [real_min, real_max]; names(k) is the variable that holds values(k).
+  subroutine check_reals(text, g, label, names, values, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: label, names(:)
+    real(wp), intent(in) :: values(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: k
+    real(wp) :: v
+    stat = 0
+    msg = ''
+    do k = 1, size(names)
+      if (findloc(text%groups(g)%keys(1:text%groups(g)%n_keys), trim(names(k)), 1) == 0) cycle
+      v = values(k)
+      if (.not. ieee_is_finite(v)) then
+        call bad(label, trim(names(k)), rtoa(v), 'must be a finite number', stat, msg)
+        return
+      else if (v /= 0.0_wp .and. (abs(v) > real_max .or. abs(v) < real_min)) then
+        call bad(label, trim(names(k)), rtoa(v), 'is out of range: a real input must be 0 '// &
+                 'or of magnitude between 1e-30 and 1e30', stat, msg)
+        return
+      end if
+    end do
+  end subroutine check_reals
+
+  !> Refuse a logical variable of group g written as anything but .true./.false. (or T/F):
+  !> Fortran would read any word starting with t or f, and '.tomato' as true.
+  subroutine check_logicals(text, g, label, names, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: label, names(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=*), parameter :: allowed(*) = [character(len=7) :: '.true.', '.false.', &
+      'true', 'false', 't', 'f', '.t.', '.f.', '.t', '.f']
+    character(len=:), allocatable :: token
+    integer :: k
+    stat = 0
+    msg = ''
+    associate(grp => text%groups(g))
+      do k = 1, grp%n_keys
+        if (findloc(names, trim(grp%keys(k)), 1) == 0) cycle
+        token = lower(text%value(g, k))
+        if (findloc(allowed, token, 1) == 0) then
+          call bad(label, trim(grp%keys(k)), token, 'must be .true. or .false.', stat, msg)
+          return
+        end if
+      end do
+    end associate
+  end subroutine check_logicals
+
+  !> Validate a node-set description (named edge, box, point or all).
+  subroutine check_set(s, label, edge_only, stat, msg)
+    type(node_set_spec_t), intent(inout) :: s
+    character(len=*), intent(in) :: label
+    logical, intent(in) :: edge_only
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    stat = 0
+    msg = ''
+    select case (trim(s%where))
+    case ('left', 'right', 'bottom', 'top')
+      continue
+    case ('box')
+      if (edge_only) then
+        call bad(label, 'where', "'box'", "an edge load needs 'left', 'right', 'bottom' or "// &
+                 "'top'", stat, msg)
+      else if (any(s%box == unset_real)) then
+        call bad(label, 'box', '(not given)', "is required with where = 'box': "// &
+                 'xmin, xmax, ymin, ymax [m]', stat, msg)
+      else if (s%box(1) > s%box(2) .or. s%box(3) > s%box(4)) then
+        call bad(label, 'box', rtoa(s%box(1))//', '//rtoa(s%box(2))//', '//rtoa(s%box(3))// &
+                 ', '//rtoa(s%box(4)), 'needs xmin <= xmax and ymin <= ymax', stat, msg)
+      end if
+    case ('point')
+      if (edge_only) then
+        call bad(label, 'where', "'point'", "an edge load needs 'left', 'right', 'bottom' or "// &
+                 "'top'", stat, msg)
+      else if (any(s%point == unset_real)) then
+        call bad(label, 'point', '(not given)', "is required with where = 'point': x, y [m]", &
+                 stat, msg)
+      end if
+    case ('all')
+      if (edge_only) call bad(label, 'where', "'all'", &
+        "an edge load needs 'left', 'right', 'bottom' or 'top'", stat, msg)
+    case ('')
+      call bad(label, 'where', "''", "is required: 'left', 'right', 'bottom', 'top', 'box', "// &
+               "'point' or 'all'", stat, msg)
+    case default
+      call bad(label, 'where', "'"//trim(s%where)//"'", "must be 'left', 'right', 'bottom', "// &
+               "'top', 'box', 'point' or 'all'", stat, msg)
+    end select
+  end subroutine check_set
+
+  !> Validate a time function.
+  subroutine check_tf(tf, label, stat, msg)
+    type(time_function_spec_t), intent(in) :: tf
+    character(len=*), intent(in) :: label
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    stat = 0
+    msg = ''
+    select case (trim(tf%kind))
+    case ('constant', 'step')
+      if (.not. (tf%t_start >= 0.0_wp)) call bad(label, 't_start', rtoa(tf%t_start), &
+        'must be >= 0 [s]', stat, msg)
+    case ('ramp')
+      if (.not. (tf%t_start >= 0.0_wp)) then
+        call bad(label, 't_start', rtoa(tf%t_start), 'must be >= 0 [s]', stat, msg)
+      else if (.not. (tf%t_ramp > 0.0_wp)) then
+        call bad(label, 't_ramp', rtoa(tf%t_ramp), "must be > 0 [s] for time_function = 'ramp'", &
+                 stat, msg)
+      end if
+    case default
+      call bad(label, 'time_function', "'"//trim(tf%kind)//"'", &
+               "must be 'constant', 'step' or 'ramp'", stat, msg)
+    end select
+  end subroutine check_tf
+end module iem_input_checks
