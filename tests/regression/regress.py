@@ -448,11 +448,11 @@ def main() -> int:
     """Parse arguments and run one regression check."""
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("check", choices=["ranks", "cantilever", "patch", "static", "convergence",
-                                      "three_point", "block", "input_errors"])
+                                      "three_point", "block"])
     ap.add_argument("--iem", required=True, help="path of the iem executable")
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="", help="extra mpiexec flags, ';'-separated")
-    ap.add_argument("--case", required=True, help="namelist (or folder of namelists)")
+    ap.add_argument("--case", required=True, help="namelist")
     ap.add_argument("--ranks", type=int, nargs="+", default=[1])
     ap.add_argument("--sub", action="append", default=[],
                     help="OLD=>NEW text substitution in the namelist (repeatable)")
