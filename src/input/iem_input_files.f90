@@ -9,7 +9,7 @@ module iem_input_files
   use iem_strings, only: itoa
   use iem_paths, only: path_kind, folder_writable, file_readable, resolved_path, folder_of, &
                        name_of, path_none, path_file, path_folder, path_special, name_max, &
-                       path_max
+                       path_max, mpiio_path_max
   use iem_xdmf, only: xdmf_path_of
   implicit none
   private
@@ -74,7 +74,12 @@ contains
       if (len(msg) > 0) return
     end if
 
-    if (restart) then
+    if (restart .and. len(rst) > mpiio_path_max) then
+      call set("&run: restart = '"//rst//"': the path is "//itoa(len(rst))//' characters '// &
+               'long; at most '//itoa(mpiio_path_max)//' are allowed for a file read through '// &
+               'MPI-IO (give a shorter or relative path)')
+      return
+    else if (restart) then
       select case (path_kind(rst))
       case (path_file)
         if (.not. file_readable(rst)) call set("&run: restart = '"//rst//"': it is not readable")
@@ -143,7 +148,11 @@ contains
       head = '&run: '//var//" = '"//value//"'"
       if (path /= value) head = head//' (writes '''//path//''')'
       folder = folder_of(path)
-      if (len(path) > path_max) then
+      if (len(path) > min(path_max, mpiio_path_max) .and. path /= xmf) then
+        call set(head//': the path is '//itoa(len(path))//' characters long; at most '// &
+                 itoa(mpiio_path_max)//' are allowed for a file written through MPI-IO '// &
+                 '(give a shorter or relative path)')
+      else if (len(path) > path_max) then
         call set(head//': the path is '//itoa(len(path))//' characters long; at most '// &
                  itoa(path_max)//' are allowed')
       else if (len(name_of(path)) == 0) then

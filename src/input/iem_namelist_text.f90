@@ -48,7 +48,8 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer :: rank, unit, ios, info(2), n
-    character(len=line_len + 1) :: buf
+    character(len=line_len) :: buf
+    logical :: too_long
     character(len=256) :: iom
     character(len=:), allocatable :: why
 
@@ -72,17 +73,20 @@ contains
       else
         n = 0
         do
-          read(unit, '(a)', iostat=ios) buf
+          call read_line(unit, buf, ios, too_long)
           if (ios /= 0) exit
           n = n + 1
-          if (len_trim(buf) > line_len) info(1) = 2
+          if (too_long .and. info(1) == 0) then
+            info(1) = 2
+            info(2) = n
+          end if
         end do
-        info(2) = n
         if (info(1) == 0) then
+          info(2) = n
           allocate(this%lines(n))
           rewind(unit)
           do n = 1, info(2)
-            read(unit, '(a)') this%lines(n)
+            call read_line(unit, this%lines(n), ios, too_long)
           end do
         end if
         close(unit)
@@ -105,13 +109,38 @@ contains
       end select
       return
     else if (stat == 2) then
-      msg = "input file '"//trim(path)//"' has a line longer than 512 characters"
+      msg = "input file '"//trim(path)//"': line "//itoa(info(2))// &
+            ' is longer than 512 characters'
       return
     end if
     this%n_lines = info(2)
     if (rank /= 0) allocate(this%lines(this%n_lines))
     if (this%n_lines > 0) call MPI_Bcast(this%lines, line_len*this%n_lines, MPI_CHARACTER, 0, comm)
   end subroutine nml_text_load
+
+  !> Read one line into buf; too_long when anything but blanks follows past len(buf)
+  !> (a plain read would cut it silently); ios /= 0 at the end of the file.
+  subroutine read_line(unit, buf, ios, too_long)
+    integer, intent(in) :: unit
+    character(len=*), intent(out) :: buf
+    integer, intent(out) :: ios
+    logical, intent(out) :: too_long
+    character(len=256) :: rest
+    integer :: got
+    too_long = .false.
+    read(unit, '(a)', advance='no', iostat=ios, size=got) buf
+    if (is_iostat_eor(ios)) then
+      ios = 0
+      return
+    end if
+    if (ios /= 0) return
+    do
+      read(unit, '(a)', advance='no', iostat=ios, size=got) rest
+      if (len_trim(rest(1:got)) > 0) too_long = .true.
+      if (ios /= 0) exit
+    end do
+    ios = 0
+  end subroutine read_line
 
   !> Split the text into groups and record each assigned variable; stat /= 0 on a syntax error.
   subroutine nml_text_scan(this, stat, msg)

@@ -8,7 +8,7 @@ module iem_paths
   public :: path_kind, folder_writable, file_readable, resolved_path, folder_of, name_of
   public :: why_not_readable
   public :: path_none, path_file, path_folder, path_special, path_unknown
-  public :: name_max, path_max
+  public :: name_max, path_max, mpiio_path_max
 
   !> What path_kind finds: nothing, a regular file, a folder, a special file (device, pipe,
   !> socket), or something that cannot be looked at (a dangling link, no permission).
@@ -17,6 +17,10 @@ module iem_paths
   !> Longest file name (one component) and whole path that iem writes: Linux's NAME_MAX and
   !> PATH_MAX less the terminating NUL, which MPI-IO and HDF5 also assume.
   integer, parameter :: name_max = 255, path_max = 4095
+  !> Longest path, as written, of a file opened through MPI-IO (the output through HDF5's
+  !> MPI-IO driver, checkpoints): Open MPI 4.1's MPI-IO builds names of its own from it in
+  !> fixed 256-byte buffers and aborts on a longer one (measured: 245 characters abort).
+  integer, parameter :: mpiio_path_max = 200
 
   interface
     function c_path_kind(path) bind(C, name='iem_path_kind') result(k)
