@@ -2,13 +2,18 @@
 #
 #   include(PfunitLite)
 #   add_pfunit_ctest(<name> TEST_SOURCES <a.pf>... [OTHER_SOURCES <f90>...]
-#                    [LINK_LIBRARIES <targets>...] [MAX_PES <n>] [LABELS <l>...] [WILL_FAIL])
+#                    [LINK_LIBRARIES <targets>...] [MAX_PES <n>] [LABELS <l>...]
+#                    [WILL_FAIL] [NO_TEST])
 #
 # builds the executable <name> from the .pf files (translated at build time by
-# tests/pfunit_lite/pfproc.py) and registers the CTest test <name>, run with
-# MAX_PES ranks (default 1) under mpiexec. WILL_FAIL (not in pFUnit) marks a test that
-# must fail; only the self-tests of the fallback use it. See tests/pfunit_lite/README.md.
-# Including this file twice is harmless.
+# tests/pfunit_lite/pfproc.py, which rejects what pFUnit 4.14 would reject) and registers the
+# CTest test <name>. As with pFUnit: with MAX_PES it runs under
+# `mpiexec ${MPIEXEC_PREFLAGS} -n <MAX_PES>`, without it the target is serial (no `pfunit`
+# module, no MPI tests) and runs without mpiexec; no compile options are added (pass
+# -ffree-line-length-none yourself, as pFUnit's targets need it too). WILL_FAIL and NO_TEST
+# (not in pFUnit: the test must fail; no test is registered) are for the fallback's
+# self-tests only.
+# See tests/pfunit_lite/README.md. Including this file twice is harmless.
 
 find_package(Python3 COMPONENTS Interpreter REQUIRED)
 find_package(MPI REQUIRED COMPONENTS Fortran)
@@ -24,21 +29,8 @@ if(NOT TARGET pfunit_lite)
   unset(_pfl_src)
 endif()
 
-# Open MPI refuses more ranks than cores unless told; look once at configure time.
-if(NOT DEFINED CACHE{PFUNIT_LITE_OVERSUBSCRIBE})
-  execute_process(COMMAND "${MPIEXEC_EXECUTABLE}" --version
-                  OUTPUT_VARIABLE _pfl_version ERROR_VARIABLE _pfl_version)
-  set(_pfl_flag "")
-  if(_pfl_version MATCHES "Open MPI|OpenRTE|open-mpi")
-    set(_pfl_flag --oversubscribe)
-  endif()
-  set(PFUNIT_LITE_OVERSUBSCRIBE "${_pfl_flag}" CACHE INTERNAL "extra mpiexec flag of pfunit_lite")
-  unset(_pfl_flag)
-  unset(_pfl_version)
-endif()
-
 function(add_pfunit_ctest name)
-  cmake_parse_arguments(PARSE_ARGV 1 arg "WILL_FAIL" "MAX_PES"
+  cmake_parse_arguments(PARSE_ARGV 1 arg "WILL_FAIL;NO_TEST" "MAX_PES"
                         "TEST_SOURCES;OTHER_SOURCES;LINK_LIBRARIES;LABELS")
   if(NOT arg_TEST_SOURCES)
     message(FATAL_ERROR "add_pfunit_ctest(${name}): TEST_SOURCES is required")
@@ -46,8 +38,9 @@ function(add_pfunit_ctest name)
   if(arg_UNPARSED_ARGUMENTS)
     message(FATAL_ERROR "add_pfunit_ctest(${name}): unknown arguments ${arg_UNPARSED_ARGUMENTS}")
   endif()
+  set(serial)
   if(NOT arg_MAX_PES)
-    set(arg_MAX_PES 1)
+    set(serial --serial)     # pFUnit links such a target with funit only
   endif()
   set(script "${CMAKE_CURRENT_FUNCTION_LIST_DIR}/../tests/pfunit_lite/pfproc.py")
   set(gen "${CMAKE_CURRENT_BINARY_DIR}/${name}_pfunit_lite")
@@ -60,7 +53,7 @@ function(add_pfunit_ctest name)
     get_filename_component(stem "${pf}" NAME_WE)
     add_custom_command(
       OUTPUT "${gen}/${stem}.F90"
-      COMMAND "${Python3_EXECUTABLE}" "${script}" "${pf}" "${gen}/${stem}.F90"
+      COMMAND "${Python3_EXECUTABLE}" "${script}" ${serial} "${pf}" "${gen}/${stem}.F90"
       DEPENDS "${pf}" "${script}"
       COMMENT "pfunit_lite: preprocessing ${stem}.pf"
       VERBATIM)
@@ -69,25 +62,32 @@ function(add_pfunit_ctest name)
   endforeach()
   add_custom_command(
     OUTPUT "${gen}/${name}_driver.F90"
-    COMMAND "${Python3_EXECUTABLE}" "${script}" --driver "${gen}/${name}_driver.F90" ${pf_files}
+    COMMAND "${Python3_EXECUTABLE}" "${script}" --driver ${serial}
+            "${gen}/${name}_driver.F90" ${pf_files}
     DEPENDS ${pf_files} "${script}"
     COMMENT "pfunit_lite: writing the driver of ${name}"
     VERBATIM)
 
   add_executable(${name} ${f90_files} "${gen}/${name}_driver.F90" ${arg_OTHER_SOURCES})
   set_target_properties(${name} PROPERTIES Fortran_MODULE_DIRECTORY "${gen}/modules")
-  # expanded assertions make long lines, as with pFUnit itself
-  target_compile_options(${name} PRIVATE
-    $<$<COMPILE_LANG_AND_ID:Fortran,GNU>:-ffree-line-length-none>)
   target_link_libraries(${name} PRIVATE pfunit_lite ${arg_LINK_LIBRARIES})
 
-  add_test(NAME ${name}
-    COMMAND "${MPIEXEC_EXECUTABLE}" ${MPIEXEC_NUMPROC_FLAG} ${arg_MAX_PES}
-            ${MPIEXEC_PREFLAGS} ${PFUNIT_LITE_OVERSUBSCRIBE} $<TARGET_FILE:${name}> ${MPIEXEC_POSTFLAGS})
+  if(arg_NO_TEST)
+    return()
+  endif()
+  if(serial)
+    add_test(NAME ${name} COMMAND $<TARGET_FILE:${name}>)
+    set(npes 1)
+  else()
+    add_test(NAME ${name}
+      COMMAND "${MPIEXEC_EXECUTABLE}" ${MPIEXEC_PREFLAGS} ${MPIEXEC_NUMPROC_FLAG} ${arg_MAX_PES}
+              $<TARGET_FILE:${name}> ${MPIEXEC_POSTFLAGS})
+    set(npes ${arg_MAX_PES})
+  endif()
   set_tests_properties(${name} PROPERTIES
     ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1"
     TIMEOUT 300
-    PROCESSORS ${arg_MAX_PES})
+    PROCESSORS ${npes})
   if(arg_LABELS)
     set_tests_properties(${name} PROPERTIES LABELS "${arg_LABELS}")
   endif()

@@ -5,8 +5,9 @@ set -euo pipefail
 IEM_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 IEM_BUILD=${IEM_BUILD:-$IEM_ROOT/build}
 IEM_VENV=${IEM_VENV:-$IEM_ROOT/.venv}
+# m4 and python3 are needed to build pFUnit (.ci/run builds it from ../shared/vendor/pfunit)
 IEM_PACKAGES="gfortran cmake make libopenmpi-dev openmpi-bin libhdf5-openmpi-dev hdf5-tools
-  libmetis-dev python3-venv python3-pip"
+  libmetis-dev python3 python3-venv python3-pip m4"
 # Open MPI refuses root unless told; harmless otherwise.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 export OMPI_MCA_rmaps_base_oversubscribe=1
@@ -53,6 +54,40 @@ build_iem() {
   cmake -S "$IEM_ROOT" -B "$IEM_BUILD" -DCMAKE_BUILD_TYPE="${IEM_BUILD_TYPE:-Release}" \
     -DPython3_EXECUTABLE="$IEM_VENV/bin/python" "$@" >/dev/null
   cmake --build "$IEM_BUILD" -j "$(nproc)"
+}
+
+# The directory holding PFUNITConfig.cmake of an installed pFUnit 4, looked for in $PFUNIT_DIR
+# (that directory or a prefix), each entry of $CMAKE_PREFIX_PATH, then /opt/pfunit; prints
+# nothing when there is none.
+find_pfunit() {
+  local places=() p cfg
+  [ -n "${PFUNIT_DIR:-}" ] && places+=("$PFUNIT_DIR")
+  if [ -n "${CMAKE_PREFIX_PATH:-}" ]; then
+    IFS=':;' read -r -a p <<<"$CMAKE_PREFIX_PATH"
+    places+=("${p[@]}")
+  fi
+  places+=(/opt/pfunit)
+  for p in "${places[@]}"; do
+    [ -n "$p" ] || continue
+    for cfg in "$p/PFUNITConfig.cmake" "$p"/PFUNIT-4*/cmake/PFUNITConfig.cmake \
+               "$p"/lib*/cmake/PFUNIT*/PFUNITConfig.cmake; do
+      if [ -f "$cfg" ]; then
+        dirname "$cfg"
+        return
+      fi
+    done
+  done
+}
+
+# "4.14 from /opt/pfunit" for the pFUnit whose PFUNITConfig.cmake is in directory $1.
+describe_pfunit() {
+  local version
+  version=$(sed -n 's/.*set(PACKAGE_VERSION "\([0-9]*\.[0-9]*\).*/\1/p' \
+            "$1/PFUNITConfig-version.cmake" 2>/dev/null | head -n 1)
+  case "$1" in
+    */PFUNIT-*/cmake) echo "${version:-4} from ${1%/PFUNIT-*/cmake}" ;;
+    *) echo "${version:-4} from $1" ;;
+  esac
 }
 
 # Number of ranks for the demo: 2 where there are 2 cores, else 1.

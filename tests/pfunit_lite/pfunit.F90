@@ -1,9 +1,12 @@
 !> pfunit_lite, MPI part: a small stand-in for pFUnit 4's `pfunit` module.
-!> Re-exports everything public in funit and adds MpiTestMethod and the MPI test runner.
+!> Re-exports everything public in funit and, like pFUnit's `pfunit`, everything of the `mpi`
+!> module (so that importing the same names from mpi_f08 is an ambiguous reference here
+!> too), and adds MpiTestMethod and the MPI test runner.
 module pfunit
   use funit
+  use mpi
   implicit none
-  public    ! so that the names of funit are re-exported; `use mpi` stays local below
+  public
 
   !> What an MPI test receives as `this`: its communicator, its rank and its size.
   type :: MpiTestMethod
@@ -18,13 +21,13 @@ module pfunit
   end type MpiTestMethod
 
   abstract interface
-    !> An MPI test as the generated wrappers see it.
-    subroutine mpi_test(this)
+    !> An MPI test or fixture: pFUnit's interface, which the test procedures must match.
+    subroutine pfl_mpi_method(this)
       import :: MpiTestMethod
       class(MpiTestMethod), intent(inout) :: this
-    end subroutine mpi_test
+    end subroutine pfl_mpi_method
   end interface
-  private :: mpi_test, getMpiCommunicator, getProcessRank, getNumProcesses
+  private :: pfl_mpi_method, getMpiCommunicator, getProcessRank, getNumProcesses
 
 contains
 
@@ -46,14 +49,14 @@ contains
     npes = this%npes
   end function getNumProcesses
 
-  !> Runs an MPI test once for each size in npes, on the first npes ranks of MPI_COMM_WORLD
-  !> (made with MPI_Comm_split); a size larger than the world is reported as skipped.
-  subroutine pfl_run_mpi(name, npes, test)
-    use mpi, only: MPI_COMM_WORLD, MPI_UNDEFINED, MPI_Comm_rank, MPI_Comm_size, &
-        MPI_Comm_split, MPI_Comm_free
+  !> Runs an MPI test once for each size in npes (0: all ranks), on the first npes ranks of
+  !> MPI_COMM_WORLD (made with MPI_Comm_split): setUp, then (unless setUp failed on a rank of
+  !> the test) the test and tearDown. A size larger than the world fails, as in pFUnit.
+  subroutine pfl_run_mpi(name, npes, test, setUp, tearDown)
     character(len=*), intent(in) :: name
     integer, intent(in) :: npes(:)
-    procedure(mpi_test) :: test
+    procedure(pfl_mpi_method) :: test
+    procedure(pfl_mpi_method), optional :: setUp, tearDown
     type(MpiTestMethod) :: this
     character(len=:), allocatable :: full_name
     integer :: j, n, world_rank, world_size, comm, ierr
@@ -62,10 +65,11 @@ contains
     call MPI_Comm_size(MPI_COMM_WORLD, world_size, ierr)
     do j = 1, size(npes)
       n = npes(j)
+      if (n == 0) n = world_size
       full_name = name // '[npes=' // pfl_str(n) // ']'
-      if (n < 1 .or. n > world_size) then
-        call pfl_skip_test(full_name, 'needs ' // pfl_str(n) // ' ranks, the run has ' // &
-            pfl_str(world_size))
+      if (n > world_size) then
+        call pfl_fail_test(full_name, 'Insufficient processes to run this test (needs ' // &
+            pfl_str(n) // ', the run has ' // pfl_str(world_size) // ')')
         cycle
       end if
       call MPI_Comm_split(MPI_COMM_WORLD, merge(0, MPI_UNDEFINED, world_rank < n), &
@@ -73,7 +77,11 @@ contains
       if (world_rank >= n) cycle
       this = MpiTestMethod(comm=comm, rank=world_rank, npes=n)
       call pfl_begin_test(full_name)
-      call test(this)
+      if (present(setUp)) call setUp(this)
+      if (.not. anyExceptions(comm)) then
+        call test(this)
+        if (present(tearDown)) call tearDown(this)
+      end if
       call pfl_end_test(comm)
       call MPI_Comm_free(comm, ierr)
     end do
