@@ -148,18 +148,18 @@ contains
       head = '&run: '//var//" = '"//value//"'"
       if (path /= value) head = head//' (writes '''//path//''')'
       folder = folder_of(path)
-      if (len(path) > min(path_max, mpiio_path_max) .and. path /= xmf) then
+      if (len(name_of(path)) == 0) then
+        call set(head//': names a folder, not a file')
+      else if (len(name_of(path)) > name_max) then
+        call set(head//': the file name is '//itoa(len(name_of(path)))//' characters long;'// &
+                 ' at most '//itoa(name_max)//' are allowed')
+      else if (len(path) > min(path_max, mpiio_path_max) .and. path /= xmf) then
         call set(head//': the path is '//itoa(len(path))//' characters long; at most '// &
                  itoa(mpiio_path_max)//' are allowed for a file written through MPI-IO '// &
                  '(give a shorter or relative path)')
       else if (len(path) > path_max) then
         call set(head//': the path is '//itoa(len(path))//' characters long; at most '// &
                  itoa(path_max)//' are allowed')
-      else if (len(name_of(path)) == 0) then
-        call set(head//': names a folder, not a file')
-      else if (len(name_of(path)) > name_max) then
-        call set(head//': the file name is '//itoa(len(name_of(path)))//' characters long;'// &
-                 ' at most '//itoa(name_max)//' are allowed')
       else if (path_kind(folder) == path_none) then
         call set(head//": its folder does not exist ('"//folder//"')")
       else if (path_kind(folder) /= path_folder) then
