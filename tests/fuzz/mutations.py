@@ -183,7 +183,7 @@ def sidecar_of(path: str) -> str:
 def run_files(text: str) -> dict[str, str]:
     """The files a run of this input writes: output, sidecar, checkpoint."""
     out = value_of(text, "output_file")
-    out = "iem_out.h5" if out is None else out.rstrip()
+    out = "iem_out.h5" if not out else out.rstrip()
     chk = value_of(text, "checkpoint_file")
     chk = with_extension(out, ".chk") if not chk or not chk.strip() else chk.rstrip()
     return {"output": out, "sidecar": sidecar_of(out), "checkpoint": chk}
