@@ -69,9 +69,9 @@ SETUP_OVERFLOW = re.compile(r"stability limit (NaN|[-+]?Inf)|at step 0\b|step 0/
 NAMES = re.compile(r"&(run|geometry|material|damping|bc|load|probe|static|initial)\b|'[^']*'|"
                    r"\bfile\b|\.nml: line \d+")
 MPIRUN_NOISE = re.compile(
-    r"^(-{20,}|Primary job\s+terminated normally|a non-zero exit code|mpirun (detected|noticed)|"
-    r"the job to be terminated|\s+Process name:|\s+Exit code:|\s*$|mpirun has exited|"
-    r"Per user-direction)")
+    r"^(-{20,}|Primary job\s+terminated normally|a non-zero exit code|"
+    r"(mpirun|mpiexec|orterun|prterun) (detected|noticed|has exited)|"
+    r"the job to be terminated|\s+Process name:|\s+Exit code:|\s*$|Per user-direction)")
 
 
 # ---- running a case ------------------------------------------------------------------------
