@@ -393,11 +393,7 @@ def m_value(base: Base, r: random.Random, c: Case) -> str:
     else:
         value, why = wrong_typed(kind, r)
         c.kind = "value.wrong_type"
-    if kind == "p" and why == "empty value" and key in ("checkpoint_file", "restart"):
-        pass  # '' is documented for these only as a quoted empty string: still a null
     new = f"  {key} = {value}\n" if added else value
-    if added and gname == "run" and key in ("restart",) and why == "":
-        why = ""
     c.what = f"&{gname} {key} = {value!s}" + (" (added)" if added else "")
     c.must_refuse = why
     return splice(text, start, end, new)
@@ -564,7 +560,6 @@ def m_files(base: Base, r: random.Random, c: Case) -> str:
         cont = p[:400] + "\n" + p[400:800] + "\n" + p[800:]
         text = set_run(text, "output_file", f"'{cont}'")
         c.what = f"output_file a creatable path of {len(p)} characters, continued over 3 lines"
-        c.outside = []
     elif op == "out.missing_folder":
         text = set_run(text, "output_file", "'no_such_folder/out.h5'")
         c.what, c.must_refuse = "output_file in a missing folder", "missing folder"
