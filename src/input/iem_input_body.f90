@@ -7,7 +7,7 @@ module iem_input_body
   use iem_config, only: config_t, bc_config_t, load_config_t, probe_config_t, name_len, path_len
   use iem_namelist_text, only: nml_text_t, line_len
   use iem_input_checks, only: bad, check_keys, read_error, check_reals, check_logicals, &
-                              check_set, check_tf
+                              check_strings, check_set, check_tf, given, check_applies
   implicit none
   private
   public :: read_geometry, read_material, read_damping
@@ -54,6 +54,13 @@ contains
     if (stat /= 0) then
       call read_error(text, g, label, iomsg, chunk, try_geometry, msg)
       stat = 1
+      return
+    end if
+    call check_strings(text, g, label, [character(len=5) :: 'plane', 'cell'], [8, 8], stat, msg)
+    if (stat /= 0) return
+    if (given(text, g, 'cell_size') .and. .not. (cfg%geometry%cell_size > 0.0_wp)) then
+      call bad(label, 'cell_size', rtoa(cfg%geometry%cell_size), 'must be > 0 [m] (or give '// &
+               'nx, ny instead)', stat, msg)
       return
     end if
     call check_reals(text, g, label, [character(len=9) :: 'length', 'height', 'thickness', &
@@ -261,6 +268,8 @@ contains
       stat = 1
       return
     end if
+    call check_strings(text, g, label, ['kind'], [12], stat, msg)
+    if (stat /= 0) return
     associate(d => cfg%damping)
       call check_reals(text, g, label, [character(len=13) :: 'ratio', 'frequency', 'alpha', &
         'beta', 'cap_frequency'], [d%ratio, d%frequency, d%alpha, d%beta, d%cap_frequency], &

@@ -10,7 +10,8 @@ module iem_input_checks
   use iem_namelist_text, only: nml_text_t, line_len
   implicit none
   private
-  public :: bad, check_keys, read_error, group_try, check_reals, check_logicals
+  public :: bad, check_keys, read_error, group_try, check_reals, check_logicals, check_strings
+  public :: given, check_applies
   public :: check_set, check_tf, real_max, real_min
 
   !> Every real input is 0 or of magnitude in [real_min, real_max]: products and quotients of
@@ -136,6 +137,91 @@ contains
       end if
     end do
   end subroutine check_reals
+
+  !> True when group g assigns the variable name (whole or an element).
+  logical function given(text, g, name)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: name
+    given = findloc(text%groups(g)%keys(1:text%groups(g)%n_keys), name, 1) > 0
+  end function given
+
+  !> Refuse a string variable of group g written without quotes (Fortran would take 1.5e3
+  !> or a misspelt .true. as a string) or longer than the lens(k) characters it is kept in.
+  subroutine check_strings(text, g, label, names, lens, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: label, names(:)
+    integer, intent(in) :: lens(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: raw
+    integer :: k, j, n
+    stat = 0
+    msg = ''
+    associate(grp => text%groups(g))
+      do k = 1, grp%n_keys
+        j = findloc(names, trim(grp%keys(k)), 1)
+        if (j == 0) cycle
+        raw = text%raw_value(g, k)
+        if (len(raw) < 2) then
+          n = -1
+        else if (raw(1:1) /= "'" .and. raw(1:1) /= '"') then
+          n = -1
+        else
+          ! characters inside the quotes, a doubled quote counting once
+          n = len(raw) - 2
+          n = n - (count_doubled(raw(2:len(raw) - 1), raw(1:1)))
+        end if
+        if (n < 0) then
+          call bad(label, trim(grp%keys(k)), raw, "must be a quoted string ('...')", stat, msg)
+          return
+        else if (n > lens(j)) then
+          call bad(label, trim(grp%keys(k)), raw, 'is longer than '//itoa(lens(j))// &
+                   ' characters', stat, msg)
+          return
+        end if
+      end do
+    end associate
+  end subroutine check_strings
+
+  pure integer function count_doubled(s, q) result(n)
+    character(len=*), intent(in) :: s
+    character, intent(in) :: q
+    integer :: i
+    n = 0
+    i = 1
+    do while (i < len(s))
+      if (s(i:i) == q .and. s(i+1:i+1) == q) then
+        n = n + 1
+        i = i + 2
+      else
+        i = i + 1
+      end if
+    end do
+  end function count_doubled
+
+  !> Refuse a node-set or time-function variable of group g that the chosen where or
+  !> time_function does not use (it would be silently ignored).
+  subroutine check_applies(text, g, label, where, time_function, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: label, where, time_function
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    stat = 0
+    msg = ''
+    if (given(text, g, 'box') .and. trim(where) /= 'box') then
+      call bad(label, 'box', '', "applies only to where = 'box' (where = '"//trim(where)// &
+               "')", stat, msg)
+    else if (given(text, g, 'point') .and. trim(where) /= 'point') then
+      call bad(label, 'point', '', "applies only to where = 'point' (where = '"//trim(where)// &
+               "')", stat, msg)
+    else if (given(text, g, 't_ramp') .and. trim(time_function) /= 'ramp') then
+      call bad(label, 't_ramp', '', "applies only to time_function = 'ramp' (time_function = '"// &
+               trim(time_function)//"')", stat, msg)
+    end if
+  end subroutine check_applies
 
   !> Refuse a logical variable of group g written as anything but .true./.false. (or T/F):
   !> Fortran would read any word starting with t or f, and '.tomato' as true.

@@ -7,7 +7,7 @@ module iem_input_control
   use iem_config, only: config_t, bc_config_t, load_config_t, probe_config_t, name_len, path_len
   use iem_namelist_text, only: nml_text_t, line_len
   use iem_input_checks, only: bad, check_keys, read_error, check_reals, check_logicals, &
-                              check_set, check_tf
+                              check_strings, check_set, check_tf, given, check_applies
   implicit none
   private
   public :: read_run, read_static, read_initial
@@ -74,6 +74,10 @@ contains
       stat = 1
       return
     end if
+    call check_strings(text, g, label, [character(len=15) :: 'analysis', 'integrator', &
+      'output_file', 'checkpoint_file', 'restart'], [16, 16, path_len, path_len, path_len], &
+      stat, msg)
+    if (stat /= 0) return
     associate(r => cfg%run)
       call check_reals(text, g, label, [character(len=19) :: 't_end', 'dt', 'dt_safety', &
         'output_interval', 'history_interval', 'progress_interval', 'energy_warn', &
@@ -219,6 +223,9 @@ contains
       stat = 1
       return
     end if
+    call check_strings(text, g, label, [character(len=6) :: 'method', 'mass'], [8, 12], stat, &
+                       msg)
+    if (stat /= 0) return
     call check_reals(text, g, label, ['tolerance'], [cfg%static%tolerance], stat, msg)
     if (stat /= 0) return
     cfg%static%given = .true.

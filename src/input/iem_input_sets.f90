@@ -7,7 +7,7 @@ module iem_input_sets
   use iem_config, only: config_t, bc_config_t, load_config_t, probe_config_t, name_len, path_len
   use iem_namelist_text, only: nml_text_t, line_len
   use iem_input_checks, only: bad, check_keys, read_error, check_reals, check_logicals, &
-                              check_set, check_tf
+                              check_strings, check_set, check_tf, given, check_applies
   implicit none
   private
   public :: read_bc, read_load, read_probe
@@ -60,6 +60,10 @@ contains
       stat = 1
       return
     end if
+    call check_strings(text, g, label, [character(len=13) :: 'name', 'where', 'kind', 'dofs', &
+      'time_function'], [name_len, 8, 8, 8, 8], stat, msg)
+    if (stat == 0) call check_applies(text, g, label, b%set%where, b%tf%kind, stat, msg)
+    if (stat /= 0) return
     call check_reals(text, g, label, [character(len=9) :: 'box', 'box', 'box', 'box', 'point', &
       'point', 'velocity', 'velocity', 't_start', 't_ramp', 't_release'], [b%set%box, &
       b%set%point, b%velocity, b%tf%t_start, b%tf%t_ramp, b%t_release], stat, msg)
@@ -144,6 +148,10 @@ contains
       stat = 1
       return
     end if
+    call check_strings(text, g, label, [character(len=13) :: 'name', 'kind', 'where', &
+      'time_function'], [name_len, 8, 8, 8], stat, msg)
+    if (stat == 0) call check_applies(text, g, label, l%set%where, l%tf%kind, stat, msg)
+    if (stat /= 0) return
     ! the vector of the load's kind (a vector of another kind is refused below)
     vname = merge('force   ', merge('traction', merge('accel   ', '        ', &
       l%kind == 'gravity'), l%kind == 'edge'), l%kind == 'nodal')
@@ -230,6 +238,8 @@ contains
       stat = 1
       return
     end if
+    call check_strings(text, g, label, ['name'], [name_len], stat, msg)
+    if (stat /= 0) return
     call check_reals(text, g, label, ['x', 'y'], [p%x, p%y], stat, msg)
     if (stat == 0) call check_logicals(text, g, label, ['springs'], stat, msg)
     if (stat /= 0) return

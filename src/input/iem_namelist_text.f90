@@ -36,6 +36,7 @@ module iem_namelist_text
     procedure :: chunk => nml_text_chunk
     procedure :: joined => nml_text_joined
     procedure :: value => nml_text_value
+    procedure :: raw_value => nml_text_raw_value
   end type nml_text_t
 
 contains
@@ -339,23 +340,42 @@ contains
     g%key_cols(g%n_keys) = col
   end subroutine add_key
 
+  !> The value of assignment k of group g as written: a quoted string whole (quotes
+  !> included, to its closing quote on its line), else its first token.
+  function nml_text_raw_value(this, g, k) result(raw)
+    class(nml_text_t), intent(in) :: this
+    integer, intent(in) :: g, k
+    character(len=:), allocatable :: raw
+    character :: q
+    integer :: l, i, j, n
+    call value_start(this, g, k, l, i)
+    raw = ''
+    if (l > this%n_lines) return
+    n = len_trim(this%lines(l))
+    q = this%lines(l)(i:i)
+    if (q /= "'" .and. q /= '"') then
+      raw = this%value(g, k)
+      return
+    end if
+    j = i + 1
+    do while (j <= n)
+      if (this%lines(l)(j:j) == q) then
+        if (j == n) exit
+        if (this%lines(l)(j+1:j+1) /= q) exit
+        j = j + 1
+      end if
+      j = j + 1
+    end do
+    raw = this%lines(l)(i:min(j, n))
+  end function nml_text_raw_value
+
   !> The first value token of assignment k of group g, as written (up to a blank, ',' or '/').
   function nml_text_value(this, g, k) result(token)
     class(nml_text_t), intent(in) :: this
     integer, intent(in) :: g, k
     character(len=:), allocatable :: token
     integer :: l, i, j
-    l = this%groups(g)%key_lines(k)
-    i = this%groups(g)%key_cols(k) + 1
-    do while (l <= this%n_lines)
-      do while (i <= len_trim(this%lines(l)))
-        if (this%lines(l)(i:i) /= ' ' .and. this%lines(l)(i:i) /= achar(9)) exit
-        i = i + 1
-      end do
-      if (i <= len_trim(this%lines(l))) exit
-      l = l + 1
-      i = 1
-    end do
+    call value_start(this, g, k, l, i)
     token = ''
     if (l > this%n_lines) return
     j = scan(this%lines(l)(i:), ' ,/'//achar(9))
@@ -365,6 +385,24 @@ contains
       token = this%lines(l)(i:i + j - 2)
     end if
   end function nml_text_value
+
+  !> Line l and column i of the first non-blank character after the '=' of assignment k of
+  !> group g (l > n_lines when there is none).
+  subroutine value_start(this, g, k, l, i)
+    class(nml_text_t), intent(in) :: this
+    integer, intent(in) :: g, k
+    integer, intent(out) :: l, i
+    l = this%groups(g)%key_lines(k)
+    i = this%groups(g)%key_cols(k) + 1
+    do while (l <= this%n_lines)
+      do while (i <= len_trim(this%lines(l)))
+        if (this%lines(l)(i:i) /= ' ' .and. this%lines(l)(i:i) /= achar(9)) return
+        i = i + 1
+      end do
+      l = l + 1
+      i = 1
+    end do
+  end subroutine value_start
 
   !> Refuse an assignment key(sub) = ... (its '=' at column col of line l) of group g that
   !> repeats an earlier one (the last would silently win), or that has no value.
