@@ -31,7 +31,8 @@ module iem_simulation
   use iem_timers, only: timer_start, timer_stop, timer_total, timer_names, n_timers, t_output, &
                         peak_rss_bytes
   use iem_strings, only: itoa, rtoa
-  use iem_limits, only: grid_limit_message, springs_limit_message, max_springs_per_rank
+  use iem_limits, only: grid_limit_message, springs_limit_message, max_springs_per_rank, &
+                        checkpoint_limit_message
   use iem_memory, only: memory_case_t, memory_need_t, memory_estimate, memory_check
   use iem_alloc_guard, only: alloc_guard_t
   use iem_build_info, only: metis_idx
@@ -109,7 +110,8 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     integer(i8), allocatable :: n_selected(:)
     integer :: k, np, nb, n_state, nsp, ci, cj, l, ierr
-    integer(i8) :: springs
+    integer(i8) :: most(3)
+    integer :: checkpoint(2)
     real(wp) :: m_corner
     character(len=:), allocatable :: label
     type(alloc_guard_t) :: guard
@@ -145,22 +147,27 @@ contains
     label = this%grid%label()
     if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
       rtoa(cfg%geometry%cell_size)//')'
-    msg = grid_limit_message(this%grid, this%n_ranks, cfg%material%nonlinear, label)
+    ! a dynamic run writes checkpoints of n_state values a node and the springs' history
+    checkpoint = 0
+    if (.not. this%static) checkpoint = [n_state, cfg%material%history_depth]
+    msg = grid_limit_message(this%grid, this%n_ranks, cfg%material%nonlinear, label, checkpoint)
     stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
     call check_memory(this, n_state, label, stat, msg)
     if (stat /= 0) return
     call decompose(this%grid, comm, this%lat, this%halo, stat, msg, n_state)
     if (stat /= 0) return
-    if (cfg%material%nonlinear) then
-      springs = 12_i8*this%lat%n_cells
-      call MPI_Allreduce(MPI_IN_PLACE, springs, 1, MPI_INTEGER8, MPI_MAX, comm)
-      if (springs > max_springs_per_rank) then
-        stat = 1
-        msg = springs_limit_message(label, springs, this%grid%n_cells)
-        return
-      end if
+    ! the same limits for the cells and nodes the ranks hold now: the largest over them
+    most = [12_i8*this%lat%n_cells, int(this%lat%n_owned, i8), int(this%lat%n_counted(), i8)]
+    call MPI_Allreduce(MPI_IN_PLACE, most, 3, MPI_INTEGER8, MPI_MAX, comm)
+    if (cfg%material%nonlinear .and. most(1) > max_springs_per_rank) then
+      msg = springs_limit_message(label, most(1), this%grid%n_cells)
+    else if (checkpoint(1) > 0) then
+      msg = checkpoint_limit_message(label, checkpoint(1), cfg%material%nonlinear, &
+                                     checkpoint(2), most(2), most(3), this%n_ranks)
     end if
+    stat = merge(1, 0, len(msg) > 0)
+    if (stat /= 0) return
     nb = size(cfg%bcs)
     allocate(n_selected(nb + size(cfg%loads)))
     call this%model%init(this%cfg, this%grid, this%lat, n_selected, guard)
