@@ -17,6 +17,7 @@ module iem_grid
     procedure :: node_xy => grid_node_xy
     procedure :: cell_corners => grid_cell_corners
     procedure :: nearest_node => grid_nearest_node
+    procedure :: label => grid_label
   end type grid_t
 
 contains
@@ -31,9 +32,18 @@ contains
     this%lx = length/nx
     this%ly = height/ny
     this%thickness = thickness
-    this%n_nodes = int(nx + 1, i8)*int(ny + 1, i8)
+    this%n_nodes = (int(nx, i8) + 1)*(int(ny, i8) + 1)
     this%n_cells = int(nx, i8)*int(ny, i8)
   end subroutine grid_init
+
+  !> The input that sets the grid, for messages: '&geometry: nx, ny = 40000, 40000'.
+  pure function grid_label(this) result(s)
+    class(grid_t), intent(in) :: this
+    character(len=:), allocatable :: s
+    character(len=40) :: b
+    write(b, '(i0,a,i0)') this%nx, ', ', this%ny
+    s = '&geometry: nx, ny = '//trim(b)
+  end function grid_label
 
   !> 0-based global index of node (i, j).
   elemental integer(i8) function grid_node_id(this, i, j) result(g)

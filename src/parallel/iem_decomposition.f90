@@ -2,11 +2,16 @@
 !> rank's local lattice (owned + halo nodes, cells touching owned nodes) and its halo plan.
 module iem_decomposition
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Bcast, MPI_INTEGER
-  use iem_kinds, only: ip, i8, mpi_ip
+  use iem_kinds, only: wp, ip, i8, mpi_ip
+  use iem_build_info, only: metis_idx
   use iem_grid, only: grid_t
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
-  use iem_metis, only: partition_grid
+  use iem_metis, only: partition_grid, partition_ok, partition_no_memory, &
+                       partition_metis_no_memory
+  use iem_limits, only: metis_graph_entries
+  use iem_alloc_guard, only: alloc_guard_t
+  use iem_memory, only: bytes_text
   use iem_sort, only: sort_i8
   implicit none
   private
@@ -15,7 +20,8 @@ module iem_decomposition
 contains
 
   !> Partition the grid over the ranks of comm and build this rank's lattice and halo plan.
-  !> The halo carries width values a node (default 4: u and v).
+  !> The halo carries width values a node (default 4: u and v). Collective; stat /= 0 with msg
+  !> on every rank when it fails (a failed allocation included).
   subroutine decompose(grid, comm, lat, halo, stat, msg, width)
     type(grid_t), intent(in) :: grid
     type(MPI_Comm), intent(in) :: comm
@@ -24,10 +30,11 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer, intent(in), optional :: width
-    integer :: w
+    integer :: w, ierr
     integer(ip), allocatable :: part(:)
     integer :: rank, nranks
     integer(i8) :: n
+    type(alloc_guard_t) :: guard
 
     call MPI_Comm_rank(comm, rank)
     call MPI_Comm_size(comm, nranks)
@@ -38,37 +45,57 @@ contains
       msg = 'the grid has fewer than 2 nodes per rank; use fewer ranks or a finer grid'
       return
     end if
-    allocate(part(0:grid%n_nodes - 1))
+    n = grid%n_nodes
+    allocate(part(0:n - 1), stat=ierr)
+    call guard%note(ierr, 'the partition of the whole body', 4.0_wp*n)
+    call guard%agree(comm, grid%label(), stat, msg)
+    if (stat /= 0) return
     if (rank == 0) call partition_grid(grid, nranks, part, stat)
     call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
-    if (stat /= 0) then
+    select case (stat)
+    case (partition_ok)
+    case (partition_no_memory)
+      msg = grid%label()//': out of memory on rank 0: allocating the METIS graph of the '// &
+            'whole body ('//bytes_text(real(metis_graph_entries(grid) + 2*n, wp)* &
+            storage_size(1_metis_idx)/8)//') failed; use a coarser grid or a node with '// &
+            'more memory for rank 0 (docs/input.md, Limits)'
+    case (partition_metis_no_memory)
+      msg = grid%label()//': METIS_PartGraphKway ran out of memory on rank 0; use a '// &
+            'coarser grid or a node with more memory for rank 0 (docs/input.md, Limits)'
+    case default
       msg = 'METIS_PartGraphKway failed'
-      return
-    end if
-    n = grid%n_nodes
+    end select
+    if (stat /= partition_ok) return
     call MPI_Bcast(part, int(n), mpi_ip(), 0, comm)
-    call build_local(grid, part, rank, lat)
+    call build_local(grid, part, rank, lat, guard)
+    call guard%agree(comm, grid%label(), stat, msg)
+    if (stat /= 0) return
     w = 4
     if (present(width)) w = width
     call build_halo(grid, part, rank, comm, lat, halo, w)
   end subroutine decompose
 
-  !> Build the local lattice of rank `me` from the global part array.
-  subroutine build_local(grid, part, me, lat)
+  !> Build the local lattice of rank `me` from the global part array; a failed allocation is
+  !> noted in guard (and the lattice left incomplete).
+  subroutine build_local(grid, part, me, lat, guard)
     type(grid_t), intent(in) :: grid
     integer(ip), intent(in) :: part(0:)
     integer, intent(in) :: me
     type(local_lattice_t), intent(inout) :: lat
+    type(alloc_guard_t), intent(inout) :: guard
     integer(ip), allocatable :: g2l(:)
     integer(i8), allocatable :: keys(:), cell_gid(:)
     integer(i8) :: g, c, corners(4), nn
-    integer :: n_owned, n_cells, n_halo, k, q, l
+    integer :: n_owned, n_cells, n_halo, k, q, l, ierr
 
     call lat%free()
     lat%nx = grid%nx
     lat%ny = grid%ny
     nn = grid%n_nodes
-    allocate(g2l(0:nn - 1), source=0_ip)
+    allocate(g2l(0:nn - 1), stat=ierr)
+    call guard%note(ierr, 'the global-to-local node map', 4.0_wp*nn)
+    if (guard%failed) return
+    g2l = 0
     n_owned = count(part == me)
     ! cells touching an owned node, ascending
     n_cells = 0
@@ -76,7 +103,9 @@ contains
       corners = grid%cell_corners(c)
       if (any(part(corners) == me)) n_cells = n_cells + 1
     end do
-    allocate(cell_gid(n_cells), lat%cell_nodes(4, n_cells))
+    allocate(cell_gid(n_cells), lat%cell_nodes(4, n_cells), stat=ierr)
+    call guard%note(ierr, 'the cells of the rank', 24.0_wp*n_cells)
+    if (guard%failed) return
     k = 0
     do c = 0, grid%n_cells - 1
       corners = grid%cell_corners(c)
@@ -103,7 +132,9 @@ contains
         end if
       end do
     end do
-    allocate(keys(n_halo))
+    allocate(keys(n_halo), lat%gid(n_owned + n_halo), stat=ierr)
+    call guard%note(ierr, 'the nodes of the rank', 8.0_wp*n_owned + 16.0_wp*n_halo)
+    if (guard%failed) return
     n_halo = 0
     do k = 1, n_cells
       corners = grid%cell_corners(cell_gid(k))
@@ -120,7 +151,6 @@ contains
     lat%n_owned = n_owned
     lat%n_local = n_owned + n_halo
     lat%n_cells = n_cells
-    allocate(lat%gid(lat%n_local))
     l = 0
     do g = 0, nn - 1
       if (part(g) == me) then

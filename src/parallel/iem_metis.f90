@@ -4,11 +4,17 @@ module iem_metis
   use iem_kinds, only: ip, i8
   use iem_build_info, only: metis_idx
   use iem_grid, only: grid_t
+  use iem_limits, only: metis_graph_entries
   implicit none
   private
   public :: partition_grid
 
-  integer, parameter :: metis_noptions = 40, metis_option_contig = 11, metis_ok = 1
+  integer, parameter :: metis_noptions = 40, metis_option_contig = 11, metis_ok = 1, &
+                        metis_error_memory = -3
+  !> partition_grid's stat: done, METIS failed, our graph arrays could not be allocated,
+  !> METIS ran out of memory.
+  integer, parameter, public :: partition_ok = 0, partition_failed = 1, &
+                                partition_no_memory = 2, partition_metis_no_memory = 3
 
   interface
     function metis_set_default_options(options) bind(C, name='METIS_SetDefaultOptions') &
@@ -33,7 +39,9 @@ module iem_metis
 
 contains
 
-  !> Part (0..nparts-1) of every node, from METIS on the graph of nodes that share a cell.
+  !> Part (0..nparts-1) of every node, from METIS on the graph of nodes that share a cell;
+  !> stat is one of partition_ok, partition_failed, partition_no_memory (the graph's arrays),
+  !> partition_metis_no_memory. The graph's entries must fit idx_t (iem_limits).
   subroutine partition_grid(grid, nparts, part, stat)
     type(grid_t), intent(in) :: grid
     integer, intent(in) :: nparts
@@ -41,16 +49,21 @@ contains
     integer, intent(out) :: stat
     integer(metis_idx), allocatable :: xadj(:), adjncy(:), mpart(:)
     integer(metis_idx) :: options(metis_noptions), nv, ncon, np, objval
-    integer :: i, j, di, dj, ii, jj
+    integer :: i, j, di, dj, ii, jj, ierr
     integer(i8) :: g, k
 
-    stat = 0
+    stat = partition_ok
     if (nparts == 1) then
       part = 0
       return
     end if
     nv = int(grid%n_nodes, metis_idx)
-    allocate(xadj(0:grid%n_nodes), adjncy(8*grid%n_nodes), mpart(0:grid%n_nodes - 1))
+    allocate(xadj(0:grid%n_nodes), adjncy(metis_graph_entries(grid)), &
+             mpart(0:grid%n_nodes - 1), stat=ierr)
+    if (ierr /= 0) then
+      stat = partition_no_memory
+      return
+    end if
     k = 0
     xadj(0) = 0
     do j = 0, grid%ny
@@ -76,10 +89,10 @@ contains
     stat = metis_part_graph_kway(nv, ncon, xadj, adjncy, c_null_ptr, c_null_ptr, c_null_ptr, &
                                  np, c_null_ptr, c_null_ptr, options, objval, mpart)
     if (stat /= metis_ok) then
-      stat = 1
+      stat = merge(partition_metis_no_memory, partition_failed, stat == metis_error_memory)
       return
     end if
-    stat = 0
+    stat = partition_ok
     part = int(mpart, ip)
   end subroutine partition_grid
 end module iem_metis

@@ -13,6 +13,7 @@ module iem_model
   use iem_strings, only: itoa
   use iem_constants, only: pi
   use iem_stable_dt, only: capped_beta
+  use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
   public :: model_t
@@ -64,16 +65,20 @@ contains
 
   !> Build the model of this rank from the configuration and its local lattice; n_selected
   !> counts, per &bc then per &load, the owned nodes each selects (the caller sums them).
-  subroutine model_init(this, cfg, grid, lat, n_selected)
+  !> A failed allocation is handed to guard (the model is then incomplete); without guard it
+  !> stops the program.
+  subroutine model_init(this, cfg, grid, lat, n_selected, guard)
     class(model_t), intent(inout) :: this
     type(config_t), intent(in) :: cfg
     type(grid_t), intent(in) :: grid
     type(local_lattice_t), intent(in) :: lat
     integer(i8), intent(out) :: n_selected(:)
-    integer :: l, q, b, n, c, ld
+    type(alloc_guard_t), intent(inout), optional :: guard
+    integer :: l, q, b, n, c, ld, ierr
     integer, allocatable :: ij(:, :)
     logical, allocatable :: taken(:, :)
     real(wp) :: mcell, w, er_pos(3), er_neg(3)
+    type(alloc_guard_t) :: g
 
     this%grid = grid
     this%density = cfg%material%density
@@ -100,17 +105,20 @@ contains
       end associate
     end if
     mcell = 0.25_wp*this%density*grid%lx*grid%ly*grid%thickness
-    allocate(this%mass(lat%n_owned))
+    allocate(this%mass(lat%n_owned), ij(2, lat%n_owned), this%f(2, lat%n_local), &
+             taken(2, lat%n_owned), stat=ierr)
+    call g%note(ierr, 'the model of the rank', 24.0_wp*lat%n_owned + 16.0_wp*lat%n_local)
+    if (g%failed) then
+      call g%pass(guard)
+      return
+    end if
     do l = 1, lat%n_owned
       this%mass(l) = mcell*count(lat%node_corners(l) > 0)
     end do
     ! grid indices of the owned nodes, for selecting node sets
-    allocate(ij(2, lat%n_owned))
     do l = 1, lat%n_owned
       ij(:, l) = lat%node_ij(l)
     end do
-    allocate(this%f(2, lat%n_local))
-    allocate(taken(2, lat%n_owned))
     this%f = 0.0_wp
     n_selected = 0
 
@@ -124,7 +132,12 @@ contains
         end if
       end do
     end do
-    allocate(this%bc_node(n), this%bc_comp(n), this%bc_id(n))
+    allocate(this%bc_node(n), this%bc_comp(n), this%bc_id(n), stat=ierr)
+    call g%note(ierr, 'the prescribed dofs of the rank', 12.0_wp*n)
+    if (g%failed) then
+      call g%pass(guard)
+      return
+    end if
     allocate(this%bc_velocity(2, size(cfg%bcs)), this%bc_tf(size(cfg%bcs)))
     allocate(this%bc_release(size(cfg%bcs)))
     this%bc_release = cfg%bcs(:)%t_release
@@ -166,7 +179,12 @@ contains
         end if
       end do
     end do
-    allocate(this%load_node(n), this%load_id(n), this%load_force(2, n))
+    allocate(this%load_node(n), this%load_id(n), this%load_force(2, n), stat=ierr)
+    call g%note(ierr, 'the loaded nodes of the rank', 24.0_wp*n)
+    if (g%failed) then
+      call g%pass(guard)
+      return
+    end if
     allocate(this%load_tf(size(cfg%loads)), this%load_scale(size(cfg%loads)))
     this%load_scale = huge(1.0_wp)
     n = 0

@@ -20,6 +20,7 @@ module iem_relaxation
   use iem_model, only: model_t
   use iem_time_function, only: tf_value
   use iem_stable_dt, only: cell_stiffness, cell_omega_max
+  use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
   public :: relaxation_t, relax_result_t, relax_check_interval, relax_step_safety
@@ -98,13 +99,18 @@ contains
 
   !> Set up the relaxation for the model on this rank's lattice; collective over comm.
   !> path_length: the pseudo-time of the whole load path (t_end).
-  subroutine relaxation_init(this, model, lat, comm, settings, path_length)
+  subroutine relaxation_init(this, model, lat, comm, settings, path_length, guard)
     class(relaxation_t), intent(inout) :: this
     type(model_t), intent(in) :: model
     type(local_lattice_t), intent(in) :: lat
     type(MPI_Comm), intent(in) :: comm
     type(static_config_t), intent(in) :: settings
     real(wp), intent(in) :: path_length
+    !> A failed allocation is handed to guard (collective all the same); without guard it
+    !> stops the program.
+    type(alloc_guard_t), intent(inout), optional :: guard
+    type(alloc_guard_t) :: g
+    integer :: ierr
     real(wp) :: kc(8, 8), rowsum(2, 4), m_corner, stiff(2)
     real(wp), allocatable :: fref(:, :)
     integer :: l, q, comp, corner, n, ld, corners(4)
@@ -116,14 +122,24 @@ contains
     this%max_iterations = settings%max_iterations
     this%tolerance = settings%tolerance
     this%path_length = path_length
-    allocate(this%free_dof(2, n))
+    allocate(this%free_dof(2, n), this%c(2, n), this%mk(2, n), this%w(2, n), this%acc(2, n), &
+             this%u_conv(2, n), this%du_conv(2, n), this%du_p(2, n), this%du_p_prev(2, n), &
+             this%u0(2, n), this%acc0(2, n), this%yw(4, lat%n_local), fref(2, n), stat=ierr)
+    call g%note(ierr, 'the relaxation work arrays of the rank', &
+                192.0_wp*n + 32.0_wp*lat%n_local)
+    allocate(this%load_weight(size(model%load_tf)))
+    this%load_weight = 0.0_wp
+    if (g%failed) then
+      ! the load weights are summed over the ranks: take part with zeros, then give up
+      if (size(this%load_weight) > 0) call MPI_Allreduce(MPI_IN_PLACE, this%load_weight, &
+        size(this%load_weight), mpi_wp(), MPI_SUM, comm)
+      call g%pass(guard)
+      return
+    end if
     this%free_dof = 1.0_wp
     do q = 1, size(model%bc_node)
       this%free_dof(model%bc_comp(q), model%bc_node(q)) = 0.0_wp
     end do
-    allocate(this%c(2, n), this%mk(2, n), this%w(2, n), this%acc(2, n), this%u_conv(2, n), &
-             this%du_conv(2, n), this%du_p(2, n), this%du_p_prev(2, n), this%u0(2, n), &
-             this%acc0(2, n), this%yw(4, lat%n_local))
     this%w = 0.0_wp
     this%acc = 0.0_wp
     this%u_conv = 0.0_wp
@@ -170,7 +186,6 @@ contains
     end do
 
     ! Load level: the projection of the loads at time t on all loads at full scale.
-    allocate(fref(2, n), this%load_weight(size(model%load_tf)))
     fref = 0.0_wp
     do q = 1, size(model%load_node)
       l = model%load_node(q)

@@ -31,6 +31,11 @@ module iem_simulation
   use iem_timers, only: timer_start, timer_stop, timer_total, timer_names, n_timers, t_output, &
                         peak_rss_bytes
   use iem_strings, only: itoa, rtoa
+  use iem_limits, only: grid_limit_message, springs_limit_message, max_springs_per_rank, &
+                        checkpoint_limit_message
+  use iem_memory, only: memory_case_t, memory_need_t, memory_estimate, memory_check
+  use iem_alloc_guard, only: alloc_guard_t
+  use iem_build_info, only: metis_idx
   implicit none
   private
   public :: simulation_t
@@ -107,8 +112,12 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer(i8), allocatable :: n_selected(:)
-    integer :: k, np, nb, n_state, nsp, ci, cj, l
+    integer :: k, np, nb, n_state, nsp, ci, cj, l, ierr
+    integer(i8) :: most(3)
+    integer :: checkpoint(2)
     real(wp) :: m_corner
+    character(len=:), allocatable :: label
+    type(alloc_guard_t) :: guard
 
     this%cfg = cfg
     this%static = cfg%run%analysis == 'static'
@@ -137,11 +146,36 @@ contains
     ! capped damping carries the filtered velocity as two more state values a node
     n_state = 4
     if (this%cfg%damping%kind == 'capped') n_state = 6
+    ! before anything is allocated: what this build can represent, and the memory it needs
+    label = this%grid%label()
+    if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
+      rtoa(cfg%geometry%cell_size)//')'
+    ! a dynamic run writes checkpoints of n_state values a node and the springs' history
+    checkpoint = 0
+    if (.not. this%static) checkpoint = [n_state, cfg%material%history_depth]
+    msg = grid_limit_message(this%grid, this%n_ranks, cfg%material%nonlinear, label, checkpoint)
+    stat = merge(1, 0, len(msg) > 0)
+    if (stat /= 0) return
+    call check_memory(this, n_state, label, stat, msg)
+    if (stat /= 0) return
     call decompose(this%grid, comm, this%lat, this%halo, stat, msg, n_state)
+    if (stat /= 0) return
+    ! the same limits for the cells and nodes the ranks hold now: the largest over them
+    most = [12_i8*this%lat%n_cells, int(this%lat%n_owned, i8), int(this%lat%n_counted(), i8)]
+    call MPI_Allreduce(MPI_IN_PLACE, most, 3, MPI_INTEGER8, MPI_MAX, comm)
+    if (cfg%material%nonlinear .and. most(1) > max_springs_per_rank) then
+      msg = springs_limit_message(label, most(1), this%grid%n_cells)
+    else if (checkpoint(1) > 0) then
+      msg = checkpoint_limit_message(label, checkpoint(1), cfg%material%nonlinear, &
+                                     checkpoint(2), most(2), most(3), this%n_ranks)
+    end if
+    stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
     nb = size(cfg%bcs)
     allocate(n_selected(nb + size(cfg%loads)))
-    call this%model%init(this%cfg, this%grid, this%lat, n_selected)
+    call this%model%init(this%cfg, this%grid, this%lat, n_selected, guard)
+    call guard%agree(comm, label, stat, msg)
+    if (stat /= 0) return
     call MPI_Allreduce(MPI_IN_PLACE, n_selected, size(n_selected), MPI_INTEGER8, MPI_SUM, comm)
     do k = 1, size(n_selected)
       if (n_selected(k) == 0) then
@@ -160,7 +194,9 @@ contains
     this%omega_max = cell_omega_max(this%model%k, m_corner)
     if (this%static) then
       ! load steps along the pseudo-time of the load path; dt is one load step's length
-      call this%relax%init(this%model, this%lat, comm, cfg%static, cfg%run%t_end)
+      call this%relax%init(this%model, this%lat, comm, cfg%static, cfg%run%t_end, guard)
+      call guard%agree(comm, label, stat, msg)
+      if (stat /= 0) return
       this%n_steps = cfg%static%load_steps
       this%dt = cfg%run%t_end/real(this%n_steps, wp)
     else
@@ -238,7 +274,12 @@ contains
     end do
     allocate(this%h_sp_e(springs_per_cell, nsp, history_chunk))
     allocate(this%h_sp_s(springs_per_cell, nsp, history_chunk))
-    if (this%model%nonlinear) allocate(this%cell_degree(this%lat%n_counted()))
+    if (this%model%nonlinear) then
+      allocate(this%cell_degree(this%lat%n_counted()), stat=ierr)
+      call guard%note(ierr, 'the degree of nonlinearity of the cells', 8.0_wp*this%lat%n_cells)
+    end if
+    call guard%agree(comm, label, stat, msg)
+    if (stat /= 0) return
     allocate(this%h_time(history_chunk), this%h_step(history_chunk))
     allocate(this%h_energy(n_energy, history_chunk))
     allocate(this%h_pu(2, np, history_chunk), this%h_pv(2, np, history_chunk))
@@ -248,26 +289,58 @@ contains
     msg = ''
   end subroutine simulation_setup
 
+  !> Refuse (stat = 1, msg) a run whose estimated memory exceeds what its nodes have (before
+  !> anything problem-sized is allocated); log the estimate. Collective.
+  subroutine check_memory(this, n_state, label, stat, msg)
+    type(simulation_t), intent(in) :: this
+    integer, intent(in) :: n_state
+    character(len=*), intent(in) :: label
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: info
+    type(memory_case_t) :: mc
+    type(memory_need_t) :: need
+    mc%n_nodes = this%grid%n_nodes
+    mc%n_cells = this%grid%n_cells
+    mc%n_ranks = this%n_ranks
+    mc%n_state = n_state
+    mc%integrator = 'rk4'
+    if (this%verlet) mc%integrator = 'verlet'
+    if (this%static) mc%integrator = 'static'
+    mc%nonlinear = this%cfg%material%nonlinear
+    mc%depth = this%cfg%material%history_depth
+    mc%idx_bytes = storage_size(1_metis_idx)/8
+    need = memory_estimate(mc)
+    call memory_check(this%comm, need, label, stat, msg, info)
+    if (stat == 0) call log_info(info)
+  end subroutine check_memory
+
   !> Create the output file, march to t_end, and close the file; stat /= 0 on failure.
   subroutine simulation_run(this, stat, msg)
     class(simulation_t), intent(inout) :: this
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer(i8) :: k, k_first
-    integer :: sig
+    integer :: sig, ierr
     real(wp) :: t, t_prev, wall0, wall_last, next_report
     logical :: diverged, finite, due
+    type(alloc_guard_t) :: guard
 
     call open_output(this, stat, msg)
     if (stat /= 0) return
     ! the state is allocated only now, after the mesh output's temporaries are gone, so that
     ! they do not add to the peak memory
     call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
-                      rk4_work=.not. (this%static .or. this%verlet))
+                      rk4_work=.not. (this%static .or. this%verlet), guard=guard)
     if (.not. this%static) then
       ! Verlet updates the state in place: the guard keeps a copy of the last good one; RK4
       ! checks each new state before accepting it and needs none
-      allocate(this%snap(4, merge(this%lat%n_owned, 0, this%verlet)))
+      allocate(this%snap(4, merge(this%lat%n_owned, 0, this%verlet)), stat=ierr)
+      call guard%note(ierr, 'the copy of the last good state', 32.0_wp*this%lat%n_owned)
+    end if
+    call guard%agree(this%comm, this%grid%label(), stat, msg)
+    if (stat /= 0) return
+    if (.not. this%static) then
       this%snap = 0.0_wp
       call initial_velocity(this)
     end if
@@ -489,8 +562,9 @@ contains
     real(wp), allocatable :: pxy(:, :), nxy(:, :), sp_xy(:, :)
     integer(i8), allocatable :: cells(:, :), cell_gids(:)
     real(wp), allocatable :: coords(:, :)
-    integer :: k, l, nc
+    integer :: k, l, nc, ierr
     integer(i8) :: nodes(4)
+    type(alloc_guard_t) :: guard
 
     associate(p => this%cfg%probes)
       allocate(names(size(p)), pxy(2, size(p)), nxy(2, size(p)))
@@ -506,12 +580,14 @@ contains
       this%probe_gid, nxy, stat, msg)
     if (stat /= 0) return
     this%output_open = .true.
-    allocate(coords(2, this%lat%n_owned))
+    nc = this%lat%n_counted()
+    allocate(coords(2, this%lat%n_owned), cells(4, nc), cell_gids(nc), stat=ierr)
+    call guard%note(ierr, 'the mesh output buffers', 16.0_wp*this%lat%n_owned + 40.0_wp*nc)
+    call guard%agree(this%comm, this%grid%label(), stat, msg)
+    if (stat /= 0) return
     do l = 1, this%lat%n_owned
       coords(:, l) = this%grid%node_xy(this%lat%gid(l))
     end do
-    nc = this%lat%n_counted()
-    allocate(cells(4, nc), cell_gids(nc))
     k = 0
     do l = 1, this%lat%n_cells
       if (.not. this%lat%cell_counted(l)) cycle

@@ -7,6 +7,7 @@ module iem_state
   use iem_halo, only: halo_t
   use iem_model, only: model_t
   use iem_timers, only: timer_start, timer_stop, t_force, t_halo
+  use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
   public :: state_t, state_rate
@@ -30,13 +31,16 @@ module iem_state
 contains
 
   !> Allocate the state for n_local nodes of which n_owned are owned, with n_state values a
-  !> node (default 4), all zero; rk4_work (default true) adds RK4's two work arrays.
-  subroutine state_init(this, n_owned, n_local, n_state, rk4_work)
+  !> node (default 4), all zero; rk4_work (default true) adds RK4's two work arrays. A failed
+  !> allocation is handed to guard (nothing allocated then); without guard it stops the program.
+  subroutine state_init(this, n_owned, n_local, n_state, rk4_work, guard)
     class(state_t), intent(inout) :: this
     integer, intent(in) :: n_owned, n_local
     integer, intent(in), optional :: n_state
     logical, intent(in), optional :: rk4_work
-    integer :: ns
+    type(alloc_guard_t), intent(inout), optional :: guard
+    type(alloc_guard_t) :: g
+    integer :: ns, ierr
     logical :: work
     ns = 4
     if (present(n_state)) ns = n_state
@@ -44,11 +48,20 @@ contains
     if (present(rk4_work)) work = rk4_work
     if (allocated(this%y)) deallocate(this%y, this%acc)
     if (allocated(this%ys)) deallocate(this%ys, this%ynew)
-    allocate(this%y(ns, n_local), this%acc(ns - 2, n_owned))
+    allocate(this%y(ns, n_local), this%acc(ns - 2, n_owned), stat=ierr)
+    call g%note(ierr, 'the state of the rank', 8.0_wp*ns*n_local + 8.0_wp*(ns - 2)*n_owned)
+    if (work .and. .not. g%failed) then
+      allocate(this%ys(ns, n_local), this%ynew(ns, n_owned), stat=ierr)
+      call g%note(ierr, 'the RK4 work arrays of the rank', 8.0_wp*ns*n_local + 8.0_wp*ns*n_owned)
+      if (g%failed) deallocate(this%y, this%acc)
+    end if
+    if (g%failed) then
+      call g%pass(guard)
+      return
+    end if
     this%y = 0.0_wp
     this%acc = 0.0_wp
     if (work) then
-      allocate(this%ys(ns, n_local), this%ynew(ns, n_owned))
       this%ys = 0.0_wp
       this%ynew = 0.0_wp
     end if
