@@ -147,7 +147,7 @@ contains
     n_state = 4
     if (this%cfg%damping%kind == 'capped') n_state = 6
     ! before anything is allocated: what this build can represent, and the memory it needs
-    label = this%grid%label()
+    label = trim(cfg%input_file)//': '//this%grid%label()
     if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
       rtoa(cfg%geometry%cell_size)//')'
     ! a dynamic run writes checkpoints of n_state values a node and the springs' history
