@@ -412,8 +412,9 @@ contains
     character(len=*), intent(in) :: key, sub
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer :: k
+    integer :: k, m, i, j
     character :: c
+    character(len=key_len) :: ident
     stat = 0
     msg = ''
     associate(grp => this%groups(g))
@@ -426,7 +427,19 @@ contains
         return
       end do
     end associate
-    c = next_nonblank(this, l, col)
+    call next_nonblank(this, l, col, m, i)
+    c = ' '
+    if (m <= this%n_lines) c = this%lines(m)(i:i)
+    if (is_ident_start(c)) then
+      ! a name followed by '=' is the next assignment: this one has no value
+      j = i
+      call read_ident(this%lines(m), j, ident)
+      do while (j <= len_trim(this%lines(m)))
+        if (this%lines(m)(j:j) /= ' ') exit
+        j = j + 1
+      end do
+      if (this%lines(m)(j:j) == '=' .or. this%lines(m)(j:j) == '(') c = ','
+    end if
     if (c == ',' .or. c == '/' .or. c == '&' .or. c == '$' .or. c == ' ') then
       stat = 1
       msg = 'line '//itoa(l)//': &'//trim(this%groups(g)%name)//': '//trim(key)//trim(sub)// &
@@ -434,25 +447,22 @@ contains
     end if
   end subroutine check_assignment
 
-  !> The first non-blank character after column col of line l, outside comments, looking on
-  !> into the following lines; ' ' at the end of the file.
-  character function next_nonblank(this, l, col) result(c)
+  !> Line m and column i of the first non-blank character after column col of line l,
+  !> outside comments, looking on into the following lines; m > n_lines at the end.
+  subroutine next_nonblank(this, l, col, m, i)
     class(nml_text_t), intent(in) :: this
     integer, intent(in) :: l, col
-    integer :: m, i
-    c = ' '
+    integer, intent(out) :: m, i
     i = col + 1
     do m = l, this%n_lines
       if (m > l) i = 1
       do while (i <= len_trim(this%lines(m)))
-        c = this%lines(m)(i:i)
-        if (c == '!') exit
-        if (c /= ' ' .and. c /= achar(9)) return
+        if (this%lines(m)(i:i) == '!') exit
+        if (this%lines(m)(i:i) /= ' ' .and. this%lines(m)(i:i) /= achar(9)) return
         i = i + 1
       end do
-      c = ' '
     end do
-  end function next_nonblank
+  end subroutine next_nonblank
 
   !> Read a lower-cased identifier starting at position j; j ends just past it.
   subroutine read_ident(line, j, ident)
