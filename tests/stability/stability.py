@@ -14,7 +14,8 @@ figure, quoted in docs/stability.md):
   drift           (long) undamped energy drift per period, RK4 and Verlet at several dt
   kill_rank       one of two ranks killed mid-run: the job ends, the output stays readable
   restart         checkpoint and restart: bitwise continuation, other rank counts, the record
-                  of the continuation, SIGUSR1 to mpirun, `timeout -s TERM` on mpirun
+                  of the continuation, SIGUSR1 to mpirun, `timeout --foreground -s TERM`
+                  on mpirun
   restart_errors  bad restarts: truncated, foreign, corrupted (one byte), old-format, empty,
                   another model's checkpoint, an output behind or not its own, missing files
   jobs            the job scripts' continuation after a signal (jobs/resubmit.sh)
@@ -514,9 +515,7 @@ def cmd_restart(args) -> None:
     work = rg.scratch("restart_signal")
     (work / "full.nml").write_text(restart_scene("elastic_rk4", "full.h5", 0.4, ""))
     (work / "s.nml").write_text(restart_scene("elastic_rk4", "s.h5", 0.4, ""))
-    t0 = time.time()
     rg.run_ok(args, 2, work / "full.nml", work, "signal: uninterrupted run")
-    wall_full = time.time() - t0
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
     proc = subprocess.Popen(rg.mpi_command(args, 2, work / "s.nml"), cwd=work, env=env,
@@ -535,7 +534,7 @@ def cmd_restart(args) -> None:
     if rg.run_ok(args, 2, work / "s2.nml", work, "signal: continued run") is not None:
         ok, worst = _files_equal(work / "full.h5", work / "s.h5", 0.0)
         rg.check(ok, f"signal: the continued run equals the uninterrupted one ({worst:.1e})")
-    _sigterm_to_mpirun(args, work, wall_full)
+    _sigterm_to_mpirun(args)
 
 
 def _check_continuation(path: Path, chk: str, ranks: int, what: str) -> None:
@@ -564,8 +563,9 @@ def _check_continuation(path: Path, chk: str, ranks: int, what: str) -> None:
                  f"{a['date'].decode()}")
 
 
-def _sigterm_to_mpirun(args, work: Path, wall_full: float) -> None:
-    """`timeout -s TERM T mpirun ... iem case` through the job scripts' run_iem: Open MPI's
+def _sigterm_to_mpirun(args) -> None:
+    """`timeout --foreground -s TERM T mpirun ... iem case` through the job scripts' run_iem:
+    Open MPI's
     mpirun passes SIGTERM to the ranks one odls_base_sigkill_timeout (set by jobs/resubmit.sh)
     after it got it, and SIGKILL one more later; they write the checkpoint and exit with 4 in
     between; mpirun itself exits with 1 and timeout with 124; run_iem reads the checkpoint's
@@ -574,15 +574,26 @@ def _sigterm_to_mpirun(args, work: Path, wall_full: float) -> None:
     import struct
     import subprocess
     import time
-    (work / "t.nml").write_text(restart_scene("elastic_rk4", "t.h5", 0.4, ""))
+    # a run long enough (1.6 s simulated, about 8 s on an idle machine) to be stopped
+    work = rg.scratch("restart_sigterm")
+    (work / "full.nml").write_text(restart_scene("elastic_rk4", "full.h5", 1.6, ""))
+    (work / "t.nml").write_text(restart_scene("elastic_rk4", "t.h5", 1.6, ""))
+    t0 = time.time()
+    if rg.run_ok(args, 2, work / "full.nml", work, "SIGTERM: uninterrupted run") is None:
+        return
+    wall_full = time.time() - t0
     # mpirun sends the ranks SIGCONT at once, SIGTERM one grace period later (IEM_TERM_GRACE
-    # = 3 s here) and SIGKILL one more later: the run (wall_full long) must still be going
-    # then, and mpirun must have started the ranks when the signal comes
-    after = max(3.0, min(0.15 * wall_full, 6.0))
-    launch = " ".join(["timeout", "-s", "TERM", f"{after:.1f}"] + rg.mpi_command(args, 2,
-                                                                              work / "t.nml"))
+    # = 2 s here) and SIGKILL one more later: mpirun must have started the ranks when the
+    # signal comes (a SIGTERM while mpirun still starts the job ends it at once: about 2 s
+    # after the start here), and the run must still be going one grace later
+    after = max(3.0, min(0.2 * wall_full, 6.0))
+    # --foreground: one SIGTERM, to mpirun only; without it timeout signals mpirun and then
+    # its process group, mpirun again, and Open MPI 4.1's mpirun exits at once (status 1,
+    # ranks killed, no checkpoint) on a second signal that comes before it acted on the first
+    launch = " ".join(["timeout", "--foreground", "-s", "TERM", f"{after:.1f}"] +
+                      rg.mpi_command(args, 2, work / "t.nml"))
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1", IEM_TERM_GRACE="3")
+               OMPI_MCA_rmaps_base_oversubscribe="1", IEM_TERM_GRACE="2")
     t0 = time.time()
     p = subprocess.run(["bash", "-c", f"source '{ROOT / 'jobs' / 'resubmit.sh'}'; "
                         f"run_iem t.nml {launch}"], cwd=work, env=env, text=True,
@@ -592,13 +603,15 @@ def _sigterm_to_mpirun(args, work: Path, wall_full: float) -> None:
     sig = struct.unpack_from("<q", chk.read_bytes(), 17 * 8)[0] if chk.exists() else None
     rg.check(p.returncode == 4 and "stopped by signal 15" in p.stdout and sig == 15 and
              "exited with status 124" in p.stderr,
-             f"timeout -s TERM after {after:.1f} s on mpirun: iem wrote {chk.name} (signal "
+             f"timeout --foreground -s TERM after {after:.1f} s on mpirun: iem wrote {chk.name} (signal "
              f"{sig} in its header) and stopped; run_iem gives exit status {p.returncode} (4) "
-             f"from the launcher's 124, {took:.0f} s in all")
+             f"from the launcher's 124, {took:.0f} s in all (uninterrupted: {wall_full:.0f} s)")
+    if p.returncode != 4:
+        print(p.stdout[-1000:], p.stderr[-3000:], sep="\n")
     result("SIGTERM to mpirun: launcher exit status, run_iem's", (
         p.stderr.split("exited with status ")[-1].split(";")[0] if "exited with" in p.stderr
         else "?", p.returncode))
-    (work / "t2.nml").write_text(restart_scene("elastic_rk4", "t.h5", 0.4,
+    (work / "t2.nml").write_text(restart_scene("elastic_rk4", "t.h5", 1.6,
                                                ", restart = 't.chk'"))
     if rg.run_ok(args, 2, work / "t2.nml", work, "SIGTERM: continued run") is not None:
         ok, worst = _files_equal(work / "full.h5", work / "t.h5", 0.0)
