@@ -2,7 +2,8 @@
 # Run one iem namelist on N MPI ranks under PBS (PBS Pro or Torque), and carry on over the
 # time limit: PBS gives no signal ahead of the limit, so iem runs under `timeout`, which
 # sends SIGUSR1 (forwarded by mpirun to the ranks) IEM_MARGIN seconds before the walltime;
-# iem writes a checkpoint and stops with exit status 4, and this script resubmits itself
+# iem writes a checkpoint and stops with exit status 4 (a SIGTERM to mpirun works too, see
+# run_iem in resubmit.sh), and this script resubmits itself
 # with a copy of the case that continues from the checkpoint. Submit from the output folder:
 #   qsub -v CASE=path/to/case.nml jobs/pbs_run.sh
 #PBS -N iem
@@ -27,8 +28,9 @@ source "$(dirname "$IEM_JOB_SCRIPT")/resubmit.sh"
 case_file=${CASE:?usage: qsub -v CASE=case.nml jobs/pbs_run.sh}
 check_case "$case_file"
 echo "iem: $IEM_EXE on $IEM_RANKS ranks, case $case_file, in $(pwd)"
-timeout --signal=USR1 --kill-after=$((IEM_MARGIN - 30)) $((IEM_WALLTIME_S - IEM_MARGIN)) \
-  mpirun -np "$IEM_RANKS" "$IEM_EXE" "$case_file"
+# --preserve-status: timeout's own status is 124 whatever iem's was
+run_iem "$case_file" timeout --preserve-status --signal=USR1 --kill-after=$((IEM_MARGIN - 30)) \
+  $((IEM_WALLTIME_S - IEM_MARGIN)) mpirun -np "$IEM_RANKS" "$IEM_EXE" "$case_file"
 status=$?
 next=$(after_run "$case_file" "$status") || exit "$status"
 [ -z "$next" ] && exit 0

@@ -28,7 +28,7 @@ source "${SLURM_SUBMIT_DIR:-.}/$(dirname "$IEM_JOB_SCRIPT")/resubmit.sh" 2>/dev/
 case_file=${1:?usage: sbatch [options] jobs/slurm_run.sh case.nml}
 check_case "$case_file"
 echo "iem: $IEM_EXE on ${SLURM_NTASKS} ranks, case $case_file, in $(pwd)"
-srun --ntasks="${SLURM_NTASKS}" "$IEM_EXE" "$case_file"
+run_iem "$case_file" srun --ntasks="${SLURM_NTASKS}" "$IEM_EXE" "$case_file"
 status=$?
 next=$(after_run "$case_file" "$status") || exit "$status"
 [ -z "$next" ] && exit 0

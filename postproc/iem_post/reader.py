@@ -267,6 +267,16 @@ class IemFile:
         """True when the run ended normally (``complete`` == 1)."""
         return _as_int(self.attr("complete")) == 1
 
+    @property
+    def continuations(self) -> list[dict[str, Any]]:
+        """One dict per continuation from a checkpoint (``/continuations``), in order:
+        checkpoint, time, step, n_ranks, date, samples, frames; empty if never continued."""
+        group = self._h5.get("continuations")
+        if group is None:
+            return []
+        return [{key: _decode(val) for key, val in group[name].attrs.items()}
+                for name in sorted(group)]
+
     # ------------------------------------------------------------------ mesh
     @property
     def mesh(self) -> Mesh:

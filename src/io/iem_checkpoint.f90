@@ -1,11 +1,19 @@
 !> Checkpoint files: the whole state of a dynamic run in one binary file written with MPI-IO,
 !> in global node and cell order, so a run can continue from it on any number of ranks.
-!> Layout (little-endian as written, native doubles and 64-bit integers):
-!>   bytes 0-511: 64 integers (header_t's integers), bytes 512-1023: 64 reals;
+!> Layout (format version 2; native byte order, doubles and 64-bit integers, all 8-byte words):
+!>   bytes 0-511: 64 integers (header_ints), bytes 512-1023: 64 reals (header_reals),
+!>   bytes 1024-8191: zeros;
 !>   from byte 8192: (w_ext, w_damp) of each rank that wrote the file;
 !>   then one record per node (global order): y(1:n_state), acc(1:n_state-2);
 !>   then, with nonlinear springs, one record per cell (global order): for each of its 12
 !>   springs strain, stress, dir, count, e_max_pos, e_max_neg, work, e_rev(1:D), s_rev(1:D).
+!> The file's size follows from its header exactly. Integer 17 of the header is a checksum of
+!> the whole file: the XOR over every word w_i (i = 0, 1, ...: its index in the file; the
+!> checksum word itself read as 0) of word_hash(i, w_i) (below). Each rank hashes the
+!> words it writes and the results are XORed across ranks (MPI_BXOR), so the checksum does not
+!> depend on the rank count; a reader hashes the file in contiguous slices, one per rank.
+!> Integer 18 is the signal (15 SIGTERM, 10 SIGUSR1) after which the run stopped, 0 when the
+!> run went on: job scripts read it (bytes 136-143) to tell a stop by signal from a failure.
 !> A file is written as <path>.tmp and renamed to <path> once complete, so a crash while
 !> writing leaves the previous checkpoint intact.
 module iem_checkpoint
@@ -14,26 +22,41 @@ module iem_checkpoint
                      MPI_Comm_size, MPI_File_open, MPI_File_close, MPI_File_set_view, &
                      MPI_File_write_at, MPI_File_read_at, MPI_File_write_all, MPI_File_read_all, &
                      MPI_Type_create_hindexed, MPI_Type_commit, MPI_Type_free, MPI_Bcast, &
-                     MPI_Barrier, MPI_Allreduce, MPI_MAX, MPI_INTEGER, MPI_INTEGER8, &
+                     MPI_Barrier, MPI_Allreduce, MPI_MAX, MPI_BXOR, MPI_INTEGER, MPI_INTEGER8, &
                      MPI_DOUBLE_PRECISION, MPI_MODE_CREATE, MPI_MODE_WRONLY, MPI_MODE_RDONLY, &
-                     MPI_INFO_NULL, MPI_OFFSET_KIND, MPI_ADDRESS_KIND, MPI_STATUS_IGNORE
+                     MPI_INFO_NULL, MPI_OFFSET_KIND, MPI_ADDRESS_KIND, MPI_STATUS_IGNORE, &
+                     MPI_IN_PLACE
   use iem_kinds, only: wp, i8
   use iem_strings, only: itoa
   implicit none
   private
-  public :: checkpoint_header_t, checkpoint_write, checkpoint_read_header, checkpoint_read
-  public :: checkpoint_magic
+  public :: checkpoint_header_t, checkpoint_write, checkpoint_read_header, checkpoint_verify
+  public :: checkpoint_read, checkpoint_magic, checkpoint_version, word_hash
 
   integer(i8), parameter :: checkpoint_magic = 4915430829614186819_i8  ! 'CHKPTIEM' as bytes
+  !> The format this iem writes and reads (1: before the checksum).
+  integer(i8), parameter :: checkpoint_version = 2
   integer(i8), parameter :: header_bytes = 8192_i8, n_header = 64
+  !> Word index of the checksum in the file (0-based).
+  integer(i8), parameter :: checksum_word = 16
+  !> Low 32 bits; the seed of the high lane.
+  integer(i8), parameter :: mask32 = 4294967295_i8, seed32 = 2654435769_i8
+  !> Words a rank reads at once when checking the checksum.
+  integer(i8), parameter :: read_chunk = 1048576_i8
 
   !> What a checkpoint records besides the node and cell records.
   type :: checkpoint_header_t
-    integer(i8) :: version = 1, nx = 0, ny = 0, n_state = 0, nonlinear = 0, depth = 0
-    integer(i8) :: verlet = 0, step = 0, n_samples = 0, n_frames = 0, n_ranks = 0
+    integer(i8) :: version = checkpoint_version, nx = 0, ny = 0, n_state = 0, nonlinear = 0
+    integer(i8) :: depth = 0, verlet = 0, step = 0, n_samples = 0, n_frames = 0, n_ranks = 0
     integer(i8) :: model_hash = 0, warned = 0, n_nodes = 0, n_cells = 0
+    !> Checksum of the file (see above); the signal the run stopped on (0: none).
+    integer(i8) :: checksum = 0, stop_signal = 0
     real(wp) :: t = 0.0_wp, dt = 0.0_wp, e0 = 0.0_wp, e_scale = 0.0_wp
     real(wp) :: last_balance = 0.0_wp, w_ext = 0.0_wp, w_damp = 0.0_wp
+    !> The last history sample in the output when the checkpoint was written: time and the
+    !> five energies (kinetic, strain, external work, damping, balance error), to recognise
+    !> that output on a restart; the time of its last frame.
+    real(wp) :: last_sample(6) = 0.0_wp, last_frame_time = 0.0_wp
   end type checkpoint_header_t
 
   interface
@@ -58,7 +81,8 @@ contains
   !> Write a checkpoint collectively: the header, this rank's (w_ext, w_damp), its owned node
   !> records node_rec(:, k) at the ascending global indices owned_gids(k), and its cell
   !> records cell_rec(:, k) at the ascending global cell indices cell_gids(k) (each cell
-  !> written by one rank). stat /= 0 with msg on every rank on failure.
+  !> written by one rank), with the checksum of the whole. stat /= 0 with msg on every rank
+  !> on failure.
   subroutine checkpoint_write(path, comm, h, energy, owned_gids, node_rec, cell_gids, &
                               cell_rec, stat, msg)
     character(len=*), intent(in) :: path
@@ -70,12 +94,33 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     type(MPI_File) :: fh
+    type(checkpoint_header_t) :: hc
     integer :: rank, ierr, ierr2, rec_n, rec_c
     integer(MPI_OFFSET_KIND) :: off_n, off_c
+    integer(i8) :: sum, w
     character(len=:), allocatable :: tmp
 
     call MPI_Comm_rank(comm, rank)
     call record_sizes(h, rec_n, rec_c)
+    off_n = header_bytes + 16_MPI_OFFSET_KIND*h%n_ranks
+    off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
+    ! the checksum: every rank hashes the words it writes (rank 0 the header, its checksum
+    ! word as 0, and the zeros after it)
+    hc = h
+    hc%checksum = 0
+    sum = 0
+    if (rank == 0) then
+      sum = words_hash(0_i8, header_ints(hc))
+      sum = ieor(sum, words_hash(n_header, transfer(header_reals(hc), 0_i8, int(n_header))))
+      do w = 2*n_header, header_bytes/8 - 1
+        sum = ieor(sum, word_hash(w, 0_i8))
+      end do
+    end if
+    sum = ieor(sum, words_hash(header_bytes/8 + 2*rank, transfer(energy, 0_i8, 2)))
+    sum = ieor(sum, records_hash(off_n/8, rec_n, owned_gids, node_rec))
+    if (rec_c > 0) sum = ieor(sum, records_hash(off_c/8, rec_c, cell_gids, cell_rec))
+    call MPI_Allreduce(MPI_IN_PLACE, sum, 1, MPI_INTEGER8, MPI_BXOR, comm)
+    hc%checksum = sum
     tmp = path//'.tmp'
     stat = 0
     msg = ''
@@ -83,20 +128,18 @@ contains
                        ierr)
     call agree(ierr, 'cannot create '//tmp)
     if (stat /= 0) return
-    if (rank == 0) call MPI_File_write_at(fh, 0_MPI_OFFSET_KIND, header_ints(h), &
+    if (rank == 0) call MPI_File_write_at(fh, 0_MPI_OFFSET_KIND, header_ints(hc), &
                                           int(n_header), MPI_INTEGER8, MPI_STATUS_IGNORE, ierr)
-    if (rank == 0) call MPI_File_write_at(fh, int(8*n_header, MPI_OFFSET_KIND), header_reals(h), &
-                                          int(n_header), MPI_DOUBLE_PRECISION, &
-                                          MPI_STATUS_IGNORE, ierr)
+    if (rank == 0) call MPI_File_write_at(fh, int(8*n_header, MPI_OFFSET_KIND), &
+                                          header_reals(hc), int(n_header), &
+                                          MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
     call MPI_File_write_at(fh, header_bytes + 16_MPI_OFFSET_KIND*rank, energy, 2, &
                            MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr2)
     ierr = max(ierr, ierr2)
-    off_n = header_bytes + 16_MPI_OFFSET_KIND*h%n_ranks
-    off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
-    call transfer(fh, off_n, rec_n, owned_gids, node_rec, .true., ierr2)
+    call transfer_records(fh, off_n, rec_n, owned_gids, node_rec, .true., ierr2)
     ierr = max(ierr, ierr2)
     if (rec_c > 0) then
-      call transfer(fh, off_c, rec_c, cell_gids, cell_rec, .true., ierr2)
+      call transfer_records(fh, off_c, rec_c, cell_gids, cell_rec, .true., ierr2)
       ierr = max(ierr, ierr2)
     end if
     call MPI_File_close(fh, ierr2)
@@ -125,57 +168,147 @@ contains
     end subroutine agree
   end subroutine checkpoint_write
 
-  !> Read the header of a checkpoint (rank 0 reads, every rank gets it); stat /= 0 with msg
-  !> when the file cannot be read or is not an iem checkpoint.
+  !> Read and check the header of a checkpoint (rank 0 reads, every rank gets the result):
+  !> an iem checkpoint of this format and these kinds, a consistent header, and exactly the
+  !> size the header implies. stat /= 0 with msg (what is wrong, without the path) otherwise.
+  !> The body's checksum is checkpoint_verify's.
   subroutine checkpoint_read_header(path, comm, h, stat, msg)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
     type(checkpoint_header_t), intent(out) :: h
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer(i8) :: ints(n_header)
+    integer(i8) :: ints(n_header), info(2)
     real(wp) :: reals(n_header)
-    integer :: rank, ios
-    logical :: exists
+    integer :: rank, unit, ios
+    integer(i8) :: nbytes, expect
     call MPI_Comm_rank(comm, rank)
-    stat = 0
-    msg = ''
     ints = 0
     reals = 0.0_wp
+    ! info: (what is wrong, the file's size); what: 0 ok, 1 unreadable, 2 too short,
+    ! 3 not a checkpoint
+    info = 0
     if (rank == 0) then
-      inquire(file=path, exist=exists)
-      stat = 1
-      if (exists) then
-        open(newunit=ios, file=path, access='stream', form='unformatted', action='read', &
-             status='old', iostat=stat)
-        if (stat == 0) then
-          read(ios, iostat=stat) ints
-          if (stat == 0) read(ios, iostat=stat) reals
-          close(ios)
-          ! too short for a header, or not ours
-          if (stat /= 0 .or. ints(1) /= checkpoint_magic) stat = 2
+      open(newunit=unit, file=path, access='stream', form='unformatted', action='read', &
+           status='old', iostat=ios)
+      if (ios /= 0) then
+        info(1) = 1
+      else
+        inquire(unit=unit, size=info(2))
+        if (info(2) < 8*2*n_header) then
+          info(1) = 2
         else
-          stat = 1
+          read(unit, iostat=ios) ints
+          if (ios == 0) read(unit, iostat=ios) reals
+          if (ios /= 0) info(1) = 1
+          if (ios == 0 .and. ints(1) /= checkpoint_magic) info(1) = 3
         end if
+        close(unit)
       end if
     end if
-    call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
-    if (stat == 1) then
-      msg = 'cannot read '//path
-      return
-    else if (stat == 2) then
-      msg = path//' is not an iem checkpoint file'
-      return
-    end if
+    call MPI_Bcast(info, 2, MPI_INTEGER8, 0, comm)
     call MPI_Bcast(ints, int(n_header), MPI_INTEGER8, 0, comm)
     call MPI_Bcast(reals, int(n_header), MPI_DOUBLE_PRECISION, 0, comm)
+    stat = int(min(info(1), 1_i8))
+    nbytes = info(2)
+    select case (info(1))
+    case (1)
+      msg = 'cannot be read'
+      return
+    case (2)
+      if (nbytes == 0) then
+        msg = 'is empty (0 bytes): not an iem checkpoint file'
+      else
+        msg = 'is '//itoa(nbytes)//' bytes, too short for the header of an iem checkpoint '// &
+              'file (truncated, or not a checkpoint)'
+      end if
+      return
+    case (3)
+      msg = 'is not an iem checkpoint file'
+      return
+    end select
     h%version = ints(2); h%nx = ints(3); h%ny = ints(4); h%n_state = ints(5)
     h%nonlinear = ints(6); h%depth = ints(7); h%verlet = ints(8); h%step = ints(9)
     h%n_samples = ints(10); h%n_frames = ints(11); h%n_ranks = ints(12)
     h%model_hash = ints(13); h%warned = ints(14); h%n_nodes = ints(15); h%n_cells = ints(16)
+    h%checksum = ints(17); h%stop_signal = ints(18)
     h%t = reals(1); h%dt = reals(2); h%e0 = reals(3); h%e_scale = reals(4)
     h%last_balance = reals(5); h%w_ext = reals(6); h%w_damp = reals(7)
+    h%last_sample = reals(8:13); h%last_frame_time = reals(14)
+    stat = 1
+    if (h%version /= checkpoint_version) then
+      msg = 'is an iem checkpoint of format version '//itoa(h%version)//'; this iem reads '// &
+            'version '//itoa(checkpoint_version)//' only (continue it with the iem that wrote it)'
+    else if (ints(19) /= storage_size(1.0_wp)/8 .or. ints(20) /= storage_size(1_i8)/8) then
+      msg = 'was written with other number kinds ('//itoa(ints(19))//'-byte reals, '// &
+            itoa(ints(20))//'-byte integers)'
+    else if (.not. plausible(h)) then
+      msg = 'has a damaged header (inconsistent sizes or counts)'
+    else
+      expect = file_bytes(h)
+      if (nbytes /= expect) then
+        msg = 'is '//itoa(nbytes)//' bytes but its header implies '//itoa(expect)// &
+              ': the file is truncated or damaged'
+      else
+        stat = 0
+        msg = ''
+      end if
+    end if
   end subroutine checkpoint_read_header
+
+  !> Check the checksum of a checkpoint whose header checkpoint_read_header has accepted: each
+  !> rank hashes a contiguous slice of the file, the slices are combined. Collective; stat /= 0
+  !> with msg (without the path) when the file cannot be read or does not match.
+  subroutine checkpoint_verify(path, comm, h, stat, msg)
+    character(len=*), intent(in) :: path
+    type(MPI_Comm), intent(in) :: comm
+    type(checkpoint_header_t), intent(in) :: h
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    type(MPI_File) :: fh
+    integer :: rank, n_ranks, ierr, e, worst
+    integer(i8) :: n_words, lo, hi, w, n, sum, j
+    integer(i8), allocatable :: buf(:)
+    call MPI_Comm_rank(comm, rank)
+    call MPI_Comm_size(comm, n_ranks)
+    stat = 0
+    msg = ''
+    call MPI_File_open(comm, path, MPI_MODE_RDONLY, MPI_INFO_NULL, fh, ierr)
+    call MPI_Allreduce(ierr, worst, 1, MPI_INTEGER, MPI_MAX, comm)
+    if (worst /= 0) then
+      stat = 1
+      msg = 'cannot be opened'
+      return
+    end if
+    n_words = file_bytes(h)/8
+    lo = n_words*rank/n_ranks
+    hi = n_words*(rank + 1)/n_ranks
+    allocate(buf(min(read_chunk, max(hi - lo, 1_i8))))
+    sum = 0
+    w = lo
+    do while (w < hi .and. ierr == 0)
+      n = min(read_chunk, hi - w)
+      call MPI_File_read_at(fh, int(8*w, MPI_OFFSET_KIND), buf, int(n), MPI_INTEGER8, &
+                            MPI_STATUS_IGNORE, e)
+      ierr = max(ierr, e)
+      if (checksum_word >= w .and. checksum_word < w + n) buf(checksum_word - w + 1) = 0
+      do j = 1, n
+        sum = ieor(sum, word_hash(w + j - 1, buf(j)))
+      end do
+      w = w + n
+    end do
+    call MPI_File_close(fh, e)
+    ierr = max(ierr, e)
+    call MPI_Allreduce(ierr, worst, 1, MPI_INTEGER, MPI_MAX, comm)
+    call MPI_Allreduce(MPI_IN_PLACE, sum, 1, MPI_INTEGER8, MPI_BXOR, comm)
+    if (worst /= 0) then
+      stat = 1
+      msg = 'cannot be read'
+    else if (sum /= h%checksum) then
+      stat = 1
+      msg = 'fails its checksum: the file is corrupted'
+    end if
+  end subroutine checkpoint_verify
 
   !> Read the node records of owned_gids and the cell records of cell_gids (both ascending)
   !> and this rank's (w_ext, w_damp): its own when the file was written on as many ranks,
@@ -215,10 +348,10 @@ contains
     end if
     off_n = header_bytes + 16_MPI_OFFSET_KIND*h%n_ranks
     off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
-    call transfer(fh, off_n, rec_n, owned_gids, node_rec, .false., ierr2)
+    call transfer_records(fh, off_n, rec_n, owned_gids, node_rec, .false., ierr2)
     ierr = max(ierr, ierr2)
     if (rec_c > 0) then
-      call transfer(fh, off_c, rec_c, cell_gids, cell_rec, .false., ierr2)
+      call transfer_records(fh, off_c, rec_c, cell_gids, cell_rec, .false., ierr2)
       ierr = max(ierr, ierr2)
     end if
     call MPI_File_close(fh, ierr2)
@@ -231,7 +364,7 @@ contains
 
   !> Collective write (or read) of records rec(:, k) of length n at the global indices
   !> gids(k) (ascending) of the record array that starts at byte offset off.
-  subroutine transfer(fh, off, n, gids, rec, write, ierr)
+  subroutine transfer_records(fh, off, n, gids, rec, write, ierr)
     type(MPI_File), intent(inout) :: fh
     integer(MPI_OFFSET_KIND), intent(in) :: off
     integer, intent(in) :: n
@@ -271,21 +404,101 @@ contains
     ierr = max(ierr, e)
     call MPI_Type_free(view, e)
     ierr = max(ierr, e)
-  end subroutine transfer
+  end subroutine transfer_records
 
+  !> The header's integers as written (the kinds' sizes in bytes as 19 and 20).
   pure function header_ints(h) result(v)
     type(checkpoint_header_t), intent(in) :: h
     integer(i8) :: v(n_header)
     v = 0
-    v(1:16) = [checkpoint_magic, h%version, h%nx, h%ny, h%n_state, h%nonlinear, h%depth, &
+    v(1:20) = [checkpoint_magic, h%version, h%nx, h%ny, h%n_state, h%nonlinear, h%depth, &
                h%verlet, h%step, h%n_samples, h%n_frames, h%n_ranks, h%model_hash, h%warned, &
-               h%n_nodes, h%n_cells]
+               h%n_nodes, h%n_cells, h%checksum, h%stop_signal, &
+               int(storage_size(1.0_wp)/8, i8), int(storage_size(1_i8)/8, i8)]
   end function header_ints
 
+  !> The header's reals as written.
   pure function header_reals(h) result(v)
     type(checkpoint_header_t), intent(in) :: h
     real(wp) :: v(n_header)
     v = 0.0_wp
-    v(1:7) = [h%t, h%dt, h%e0, h%e_scale, h%last_balance, h%w_ext, h%w_damp]
+    v(1:14) = [h%t, h%dt, h%e0, h%e_scale, h%last_balance, h%w_ext, h%w_damp, h%last_sample, &
+               h%last_frame_time]
   end function header_reals
+
+  !> Whether the header's counts are consistent (a damaged header is refused before its
+  !> sizes are used).
+  pure logical function plausible(h)
+    type(checkpoint_header_t), intent(in) :: h
+    plausible = h%nx >= 1 .and. h%ny >= 1 .and. h%nx < 2_i8**30 .and. h%ny < 2_i8**30
+    if (.not. plausible) return
+    plausible = h%n_nodes == (h%nx + 1)*(h%ny + 1) .and. h%n_cells == h%nx*h%ny .and. &
+                (h%n_state == 4 .or. h%n_state == 6) .and. &
+                (h%nonlinear == 0 .or. h%nonlinear == 1) .and. h%depth >= 0 .and. &
+                h%depth <= 10000 .and. (h%verlet == 0 .or. h%verlet == 1) .and. &
+                h%step >= 0 .and. h%n_samples >= 0 .and. h%n_frames >= 0 .and. &
+                h%n_ranks >= 1 .and. h%n_ranks <= 2_i8**30 .and. h%dt > 0.0_wp
+  end function plausible
+
+  !> The size in bytes of the checkpoint that header h describes.
+  pure integer(i8) function file_bytes(h)
+    type(checkpoint_header_t), intent(in) :: h
+    integer :: rec_n, rec_c
+    call record_sizes(h, rec_n, rec_c)
+    file_bytes = header_bytes + 16*h%n_ranks + 8*(rec_n*h%n_nodes + rec_c*h%n_cells)
+  end function file_bytes
+
+  !> The hash of word w at word index i of the file: two 32-bit lanes mixed with murmur3's
+  !> finaliser, seeded by the index; one-to-one in w, so a change of any one word always
+  !> changes the checksum. Integer arithmetic stays below 2**63 (no overflow).
+  elemental integer(i8) function word_hash(i, w) result(z)
+    integer(i8), intent(in) :: i, w
+    integer(i8) :: a, b
+    a = fmix32(ieor(iand(w, mask32), fmix32(iand(i + 1, mask32))))
+    b = fmix32(ieor(ieor(shiftr(w, 32), fmix32(iand(shiftr(i, 32) + seed32, mask32))), a))
+    z = ior(shiftl(b, 32), fmix32(ieor(a, b)))
+  end function word_hash
+
+  !> murmur3's 32-bit finaliser of h (0 <= h < 2**32).
+  elemental integer(i8) function fmix32(h) result(x)
+    integer(i8), intent(in) :: h
+    x = ieor(h, shiftr(h, 16))
+    x = mul32(x, 2246822507_i8)
+    x = ieor(x, shiftr(x, 13))
+    x = mul32(x, 3266489909_i8)
+    x = ieor(x, shiftr(x, 16))
+  end function fmix32
+
+  !> x*c modulo 2**32 for 0 <= x, c < 2**32, in 16-bit halves of c.
+  elemental integer(i8) function mul32(x, c)
+    integer(i8), intent(in) :: x, c
+    mul32 = iand(x*iand(c, 65535_i8) + shiftl(iand(x*shiftr(c, 16), 65535_i8), 16), mask32)
+  end function mul32
+
+  !> XOR of the hashes of the words v(1:) stored from word index first on.
+  pure integer(i8) function words_hash(first, v) result(x)
+    integer(i8), intent(in) :: first, v(:)
+    integer :: j
+    x = 0
+    do j = 1, size(v)
+      x = ieor(x, word_hash(first + j - 1, v(j)))
+    end do
+  end function words_hash
+
+  !> XOR of the hashes of the records rec(:, k) of length n stored at global indices gids(k)
+  !> of the record array that starts at word index first.
+  pure integer(i8) function records_hash(first, n, gids, rec) result(x)
+    integer(i8), intent(in) :: first, gids(:)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: rec(:, :)
+    integer(i8) :: base
+    integer :: j, k
+    x = 0
+    do k = 1, size(gids)
+      base = first + gids(k)*n
+      do j = 1, n
+        x = ieor(x, word_hash(base + j - 1, transfer(rec(j, k), 0_i8)))
+      end do
+    end do
+  end function records_hash
 end module iem_checkpoint

@@ -9,7 +9,7 @@ module iem_h5_output
   use iem_strings, only: itoa
   use iem_xdmf, only: xdmf_write, xdmf_frame_name, xdmf_path_of
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_Bcast, &
-    MPI_INTEGER, MPI_LOGICAL, MPI_MAX, MPI_SUM, MPI_INFO_NULL
+    MPI_INTEGER, MPI_LOGICAL, MPI_MAX, MPI_SUM, MPI_INFO_NULL, MPI_CHARACTER
   use hdf5, only: HID_T, HSIZE_T, SIZE_T, h5open_f, h5close_f, h5kind_to_type, &
     H5_REAL_KIND, H5_INTEGER_KIND, &
     h5pcreate_f, h5pclose_f, h5pset_fapl_mpio_f, h5pset_libver_bounds_f, &
@@ -20,7 +20,7 @@ module iem_h5_output
     h5fcreate_f, h5fclose_f, h5fflush_f, H5F_ACC_TRUNC_F, H5F_ACC_EXCL_F, H5F_SCOPE_GLOBAL_F, &
     h5fopen_f, H5F_ACC_RDWR_F, h5lexists_f, h5ldelete_f, h5dopen_f, h5dread_f, &
     h5sget_simple_extent_dims_f, &
-    h5gcreate_f, h5gopen_f, h5gclose_f, &
+    h5gcreate_f, h5gopen_f, h5gclose_f, h5gget_info_f, &
     h5dcreate_f, h5dwrite_f, h5dclose_f, h5dset_extent_f, h5dget_space_f, &
     h5screate_f, h5screate_simple_f, h5scopy_f, h5sclose_f, h5sselect_hyperslab_f, &
     h5sselect_none_f, H5S_SCALAR_F, H5S_SELECT_SET_F, H5S_SELECT_OR_F, H5S_UNLIMITED_F, &
@@ -106,6 +106,7 @@ module iem_h5_output
     procedure :: write_spring_history => h5_output_write_spring_history
     procedure :: write_cell_field => h5_output_write_cell_field
     procedure :: reopen => h5_output_reopen
+    procedure :: record_continuation => h5_output_record_continuation
     procedure :: samples_written => h5_output_samples_written
     procedure :: frames_written => h5_output_frames_written
     procedure :: close => h5_output_close
@@ -860,7 +861,6 @@ contains
     integer(HID_T) :: fapl, attr
     integer :: ierr, k, p, zero
     integer(i8) :: have
-    integer(HSIZE_T) :: dims(2), maxdims(2)
     integer(HID_T) :: space
     logical :: exists
     character(len=:), allocatable :: pname, frame
@@ -1017,6 +1017,73 @@ contains
       if (failed(this, e, 'h5dset_extent_f', where, stat, msg)) return
     end subroutine open_series
   end subroutine h5_output_reopen
+
+  !> Adds /continuations/NNNN (1, 2, ...: one per continuation) with the attributes checkpoint
+  !> (its path as given), time and step (where the run continued), n_ranks, date (the wall
+  !> clock at the continuation, ISO 8601, of rank 0), samples and frames (what the file kept
+  !> of the run before). Collective.
+  subroutine h5_output_record_continuation(this, checkpoint, time, step, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    character(len=*), intent(in) :: checkpoint
+    real(wp), intent(in) :: time
+    integer(i8), intent(in) :: step
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(HID_T) :: grp, sub
+    integer :: ierr, storage, max_corder, n_links, v(8)
+    logical :: exists
+    character(len=25) :: date
+    character(len=4) :: name
+    character(len=:), allocatable :: where
+
+    stat = 0
+    msg = ''
+    grp = -1
+    sub = -1
+    where = '/continuations'
+    date = ''
+    if (this%rank == 0) then
+      call date_and_time(values=v)
+      write(date, '(i4.4,"-",i2.2,"-",i2.2,"T",i2.2,":",i2.2,":",i2.2,a1,i2.2,":",i2.2)') &
+        v(1:3), v(5:7), merge('+', '-', v(4) >= 0), abs(v(4))/60, mod(abs(v(4)), 60)
+    end if
+    call MPI_Bcast(date, len(date), MPI_CHARACTER, 0, this%comm)
+    work: block
+      call h5lexists_f(this%file_id, 'continuations', exists, ierr)
+      if (failed(this, ierr, 'h5lexists_f', '/continuations', stat, msg)) exit work
+      if (exists) then
+        call h5gopen_f(this%file_id, 'continuations', grp, ierr)
+        if (failed(this, ierr, 'h5gopen_f', '/continuations', stat, msg)) exit work
+      else
+        call h5gcreate_f(this%file_id, 'continuations', grp, ierr)
+        if (failed(this, ierr, 'h5gcreate_f', '/continuations', stat, msg)) exit work
+      end if
+      call h5gget_info_f(grp, storage, n_links, max_corder, ierr)
+      if (failed(this, ierr, 'h5gget_info_f', '/continuations', stat, msg)) exit work
+      write(name, '(i4.4)') n_links + 1
+      where = '/continuations/'//name
+      call h5gcreate_f(grp, name, sub, ierr)
+      if (failed(this, ierr, 'h5gcreate_f', where, stat, msg)) exit work
+      call put_attr(this, sub, where, 'checkpoint', stat, msg, text=checkpoint)
+      call put_attr(this, sub, where, 'time', stat, msg, rval=time)
+      call put_attr(this, sub, where, 'step', stat, msg, lval=step)
+      call put_attr(this, sub, where, 'n_ranks', stat, msg, ival=this%n_ranks)
+      call put_attr(this, sub, where, 'date', stat, msg, text=trim(date))
+      call put_attr(this, sub, where, 'samples', stat, msg, lval=this%n_samples)
+      call put_attr(this, sub, where, 'frames', stat, msg, lval=this%n_frames)
+    end block work
+    if (sub >= 0) then
+      call h5gclose_f(sub, ierr)
+      if (failed(this, ierr, 'h5gclose_f', where, stat, msg)) continue
+    end if
+    if (grp >= 0) then
+      call h5gclose_f(grp, ierr)
+      if (failed(this, ierr, 'h5gclose_f', '/continuations', stat, msg)) continue
+    end if
+    if (stat /= 0) return
+    call h5fflush_f(this%file_id, H5F_SCOPE_GLOBAL_F, ierr)
+    if (failed(this, ierr, 'h5fflush_f', '/', stat, msg)) return
+  end subroutine h5_output_record_continuation
 
   !> History samples written so far.
   pure integer(i8) function h5_output_samples_written(this) result(n)

@@ -21,8 +21,7 @@ module iem_simulation
   use iem_cell_kernel, only: cell_strain_measures
   use iem_nonlinear_springs, only: springs_per_cell, spring_kind, spring_strains
   use iem_spring_constants, only: spring_moduli
-  use iem_checkpoint, only: checkpoint_header_t, checkpoint_write, checkpoint_read_header, &
-                            checkpoint_read
+  use iem_checkpoint, only: checkpoint_header_t
   use iem_signals, only: install_signal_handlers, signal_caught
   use iem_h5_output, only: h5_output_t
   use iem_build_info, only: iem_version
@@ -39,6 +38,9 @@ module iem_simulation
   implicit none
   private
   public :: simulation_t
+  ! used by the submodule iem_restart: gfortran does not keep private module procedures that
+  ! only a submodule calls
+  public :: flush_history, counted_cell_gids
 
   integer, parameter :: n_energy = 5, history_chunk = 256
 
@@ -92,6 +94,9 @@ module iem_simulation
     logical :: warned = .false.
     !> Restart: the checkpoint's header (step 0: a fresh run).
     type(checkpoint_header_t) :: restart
+    !> The last history sample written (time and the five energies) and the time of the last
+    !> frame: a checkpoint records them to recognise its output on a restart.
+    real(wp) :: last_sample(6) = 0.0_wp, last_frame_time = 0.0_wp
   contains
     procedure :: setup => simulation_setup
     procedure :: run => simulation_run
@@ -100,6 +105,40 @@ module iem_simulation
 
   !> Most steps a dynamic run may take: 2^53, where the time t + dt stops advancing.
   real(wp), parameter :: max_steps = 9007199254740992.0_wp
+
+  ! checkpoints and continued runs (iem_restart.f90)
+  interface
+    !> Check the checkpoint to continue from, whole, before anything is written.
+    module subroutine check_restart(this, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine check_restart
+
+    !> Write a checkpoint of the state at the top of step k (sig: the signal the run stops on).
+    module subroutine write_checkpoint(this, k, t, sig, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t
+      integer, intent(in) :: sig
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine write_checkpoint
+
+    !> Restore the state of the checkpoint this run continues from.
+    module subroutine load_checkpoint(this, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine load_checkpoint
+
+    !> Reopen the output of the interrupted run to append to it.
+    module subroutine reopen_output(this, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine reopen_output
+  end interface
 
 contains
 
@@ -326,6 +365,9 @@ contains
     logical :: diverged, finite, due
     type(alloc_guard_t) :: guard
 
+    ! a dynamic run checkpoints and stops on SIGTERM/SIGUSR1 from here on (a signal during
+    ! the set-up is acted on at the first check of the time loop)
+    if (.not. this%static) call install_signal_handlers()
     call open_output(this, stat, msg)
     if (stat /= 0) return
     ! the state is allocated only now, after the mesh output's temporaries are gone, so that
@@ -350,7 +392,6 @@ contains
       return
     end if
     call report_start(this)
-    call install_signal_handlers()
     wall0 = MPI_Wtime()
     wall_last = wall0
     next_report = 0.1_wp
@@ -382,7 +423,7 @@ contains
           if (crossed(t_prev, t, this%cfg%run%checkpoint_interval)) due = .true.
         end if
         if (due) then
-          call write_checkpoint(this, k, t, stat, msg)
+          call write_checkpoint(this, k, t, sig, stat, msg)
           if (stat /= 0) return
           if (sig /= 0) then
             stat = 4
@@ -520,26 +561,6 @@ contains
     end if
   end subroutine open_output
 
-  !> Reopen the output of the interrupted run to append to it.
-  subroutine reopen_output(this, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    character(len=64), allocatable :: names(:), sp_names(:)
-    integer :: k
-    allocate(names(size(this%cfg%probes)), sp_names(size(this%sp_probe)))
-    do k = 1, size(names)
-      names(k) = this%cfg%probes(k)%name
-    end do
-    do k = 1, size(sp_names)
-      sp_names(k) = this%cfg%probes(this%sp_probe(k))%name
-    end do
-    call this%out%reopen(trim(this%cfg%run%output_file), this%comm, this%grid%n_nodes, &
-      this%grid%n_cells, this%lat%gid(1:this%lat%n_owned), counted_cell_gids(this), names, &
-      sp_names, this%restart%n_samples, this%restart%n_frames, stat, msg)
-    if (stat == 0) this%output_open = .true.
-  end subroutine reopen_output
-
   !> Global indices of this rank's counted cells, ascending.
   function counted_cell_gids(this) result(g)
     type(simulation_t), intent(in) :: this
@@ -665,6 +686,8 @@ contains
     this%h_time(b) = t
     this%h_step(b) = k
     this%h_energy(:, b) = [ke, se, this%sample(3), this%sample(4), this%last_balance]
+    this%last_sample(1) = t
+    this%last_sample(2:6) = this%h_energy(:, b)
     do p = 1, np
       this%h_pu(:, p, b) = this%sample(4 + 4*(p - 1) + 1:4 + 4*(p - 1) + 2)
       this%h_pv(:, p, b) = this%sample(4 + 4*(p - 1) + 3:4 + 4*p)
@@ -754,6 +777,7 @@ contains
     n = this%lat%n_owned
     ! the sections are copied to contiguous temporaries at output time only
     call this%out%write_frame(k, t, this%st%y(1:2, 1:n), this%st%y(3:4, 1:n), stat, msg)
+    this%last_frame_time = t
     if (stat /= 0 .or. .not. this%model%nonlinear) return
     call nonlinearity_degree(this)
     call this%out%write_cell_field('nonlinearity', this%cell_degree, stat, msg)
@@ -859,245 +883,6 @@ contains
         rtoa(this%dt_limit/undamped_limit(this))//' of the undamped one')
     end if
   end subroutine report_start
-
-  !> A 64-bit FNV-1a hash of what defines the model (grid, material, damping, conditions,
-  !> loads, initial state, integrator, step): a checkpoint continues only the same model.
-  integer(i8) function model_hash(this) result(h)
-    type(simulation_t), intent(in) :: this
-    character(len=:), allocatable :: sig
-    character(len=64) :: b
-    integer :: k
-    integer(i8), parameter :: prime = 1099511628211_i8
-    associate(c => this%cfg)
-      sig = trim(c%geometry%plane)//trim(c%geometry%cell)//trim(c%damping%kind)// &
-            trim(c%run%integrator)
-      write(b, '(2i12)') this%grid%nx, this%grid%ny
-      sig = sig//b
-      call add([c%geometry%length, c%geometry%height, c%geometry%thickness, c%material%young, &
-                c%material%poisson, c%material%density, c%material%tensile_strength, &
-                c%material%compressive_strength, c%material%shear_strength, this%model%alpha, &
-                this%model%beta, this%model%omega_cap, c%initial%velocity, &
-                c%initial%angular_velocity, c%initial%center, this%dt])
-      write(b, '(l1, i6)') c%material%nonlinear, c%material%history_depth
-      sig = sig//b
-      do k = 1, size(c%bcs)
-        sig = sig//trim(c%bcs(k)%set%where)//trim(c%bcs(k)%kind)//trim(c%bcs(k)%tf%kind)
-        call add([c%bcs(k)%set%box, c%bcs(k)%set%point, c%bcs(k)%velocity, &
-                  merge(1.0_wp, 0.0_wp, c%bcs(k)%dof), c%bcs(k)%tf%t_start, c%bcs(k)%tf%t_ramp, &
-                  min(c%bcs(k)%t_release, 1.0e300_wp)])
-      end do
-      do k = 1, size(c%loads)
-        sig = sig//trim(c%loads(k)%set%where)//trim(c%loads(k)%kind)//trim(c%loads(k)%tf%kind)
-        call add([c%loads(k)%set%box, c%loads(k)%set%point, c%loads(k)%value, &
-                  c%loads(k)%tf%t_start, c%loads(k)%tf%t_ramp])
-      end do
-    end associate
-    h = -3750763034362895579_i8
-    do k = 1, len(sig)
-      h = ieor(h, int(iachar(sig(k:k)), i8))
-      h = h*prime
-    end do
-  contains
-    subroutine add(v)
-      real(wp), intent(in) :: v(:)
-      integer :: j
-      do j = 1, size(v)
-        write(b, '(es25.17e3)') v(j)
-        sig = sig//trim(b)
-      end do
-    end subroutine add
-  end function model_hash
-
-  !> Read the header of the checkpoint to continue from and check that it belongs to this
-  !> model, grid and time step. Collective.
-  subroutine check_restart(this, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    character(len=:), allocatable :: what, path, why
-    path = trim(this%cfg%run%restart)
-      call checkpoint_read_header(path, this%comm, this%restart, stat, why)
-      if (stat /= 0) then
-        msg = trim(this%cfg%input_file)//": &run: restart = '"//path//"': "//why
-        return
-      end if
-      what = ''
-      if (this%restart%nx /= this%grid%nx .or. this%restart%ny /= this%grid%ny) then
-        what = 'a '//itoa(this%restart%nx)//' x '//itoa(this%restart%ny)//' grid'
-      else if (this%restart%model_hash /= model_hash(this)) then
-        what = 'a different model (geometry, material, damping, conditions, loads, initial '// &
-               'state, integrator or time step differ)'
-      else if (this%restart%step > this%n_steps) then
-        what = 'step '//itoa(this%restart%step)//', beyond the '//itoa(this%n_steps)// &
-               ' steps of this run'
-      end if
-      if (len(what) > 0) then
-        stat = 1
-        msg = trim(this%cfg%input_file)//": &run: restart = '"//path//"' was written for "// &
-              what//'; it can only continue the run that wrote it'
-        return
-      end if
-      if (this%restart%step == 0) this%restart%step = -1
-  end subroutine check_restart
-
-  !> Write a checkpoint of the state at the top of step k (before its rates): y and the rates
-  !> of every owned node, the springs' history, the run's counters. Collective.
-  subroutine write_checkpoint(this, k, t, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    type(checkpoint_header_t) :: h
-    real(wp), allocatable :: nodes(:, :), cells(:, :)
-    integer(i8), allocatable :: cg(:)
-    real(wp) :: sums(2)
-    integer :: l, ns, c, n
-    call flush_history(this, stat)
-    if (stat /= 0) then
-      msg = 'writing the history before a checkpoint failed'
-      return
-    end if
-    ns = this%model%n_state
-    h%nx = this%grid%nx
-    h%ny = this%grid%ny
-    h%n_state = ns
-    h%nonlinear = merge(1_i8, 0_i8, this%model%nonlinear)
-    h%depth = this%cfg%material%history_depth
-    if (this%model%nonlinear) h%depth = this%model%nl%state%depth
-    h%verlet = merge(1_i8, 0_i8, this%verlet)
-    h%step = k
-    h%n_samples = this%out%samples_written()
-    h%n_frames = this%out%frames_written()
-    h%n_ranks = this%n_ranks
-    h%model_hash = model_hash(this)
-    h%warned = merge(1_i8, 0_i8, this%warned)
-    h%n_nodes = this%grid%n_nodes
-    h%n_cells = this%grid%n_cells
-    h%t = t
-    h%dt = this%dt
-    h%e0 = this%e0
-    h%e_scale = this%e_scale
-    h%last_balance = this%last_balance
-    sums = [this%w_ext, this%w_damp]
-    call MPI_Allreduce(MPI_IN_PLACE, sums, 2, mpi_wp(), MPI_SUM, this%comm)
-    h%w_ext = sums(1)
-    h%w_damp = sums(2)
-    n = this%lat%n_owned
-    allocate(nodes(2*ns - 2, n))
-    do l = 1, n
-      nodes(1:ns, l) = this%st%y(1:ns, l)
-      nodes(ns + 1:, l) = this%st%acc(:, l)
-    end do
-    cg = counted_cell_gids(this)
-    if (this%model%nonlinear) then
-      allocate(cells(12*(7 + 2*h%depth), size(cg)))
-      c = 0
-      do l = 1, this%lat%n_cells
-        if (.not. this%lat%cell_counted(l)) cycle
-        c = c + 1
-        cells(:, c) = pack_springs(this, l, int(h%depth))
-      end do
-    else
-      allocate(cells(0, 0))
-    end if
-    call checkpoint_write(trim(this%cfg%run%checkpoint_file), this%comm, h, &
-                          [this%w_ext, this%w_damp], this%lat%gid(1:n), nodes, cg, cells, &
-                          stat, msg)
-    if (stat == 0) call log_info('checkpoint: '//trim(this%cfg%run%checkpoint_file)// &
-                                 ' at step '//itoa(k)//', t = '//rtoa(t)//' s')
-  end subroutine write_checkpoint
-
-  !> The history of the 12 springs of local cell l as one record.
-  function pack_springs(this, l, depth) result(r)
-    type(simulation_t), intent(in) :: this
-    integer, intent(in) :: l, depth
-    real(wp) :: r(12*(7 + 2*depth))
-    integer :: j, i, o
-    associate(st => this%model%nl%state)
-      do j = 1, 12
-        i = 12*(l - 1) + j
-        o = (j - 1)*(7 + 2*depth)
-        r(o + 1:o + 7) = [st%strain(i), st%stress(i), real(st%dir(i), wp), &
-                          real(st%count(i), wp), st%e_max_pos(i), st%e_max_neg(i), &
-                          this%model%nl%work(i)]
-        r(o + 8:o + 7 + depth) = st%e_rev(:, i)
-        r(o + 8 + depth:o + 7 + 2*depth) = st%s_rev(:, i)
-      end do
-    end associate
-  end function pack_springs
-
-  !> Restore the state of the checkpoint this run continues from. Collective.
-  subroutine load_checkpoint(this, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    real(wp), allocatable :: nodes(:, :), cells(:, :), scratch(:, :)
-    integer(i8), allocatable :: cg(:)
-    real(wp) :: energy(2)
-    integer :: l, ns, n, d, j, i, o
-    ns = this%model%n_state
-    n = this%lat%n_owned
-    d = int(this%restart%depth)
-    allocate(nodes(2*ns - 2, n))
-    allocate(cg(this%lat%n_cells))
-    do l = 1, this%lat%n_cells
-      cg(l) = this%lat%cell_gid(l)
-    end do
-    if (this%model%nonlinear) then
-      allocate(cells(12*(7 + 2*d), this%lat%n_cells))
-    else
-      allocate(cells(0, 0))
-      cg = cg(1:0)
-    end if
-    call checkpoint_read(trim(this%cfg%run%restart), this%comm, this%restart, energy, &
-                         this%lat%gid(1:n), nodes, cg, cells, stat, msg)
-    if (stat /= 0) then
-      msg = 'restart: '//msg
-      return
-    end if
-    do l = 1, n
-      this%st%y(1:ns, l) = nodes(1:ns, l)
-      this%st%acc(:, l) = nodes(ns + 1:, l)
-    end do
-    this%w_ext = energy(1)
-    this%w_damp = energy(2)
-    this%e0 = this%restart%e0
-    this%e_scale = this%restart%e_scale
-    this%last_balance = this%restart%last_balance
-    this%warned = this%restart%warned /= 0
-    if (this%verlet) then
-      this%snap = this%st%y(1:4, 1:n)
-      this%snap_step = this%restart%step
-      this%snap_time = this%restart%t
-    end if
-    if (this%model%nonlinear) then
-      associate(st => this%model%nl%state)
-        do l = 1, this%lat%n_cells
-          do j = 1, 12
-            i = 12*(l - 1) + j
-            o = (j - 1)*(7 + 2*d)
-            st%strain(i) = cells(o + 1, l)
-            st%stress(i) = cells(o + 2, l)
-            st%dir(i) = int(cells(o + 3, l), kind(st%dir))
-            st%count(i) = int(cells(o + 4, l), kind(st%count))
-            st%e_max_pos(i) = cells(o + 5, l)
-            st%e_max_neg(i) = cells(o + 6, l)
-            this%model%nl%work(i) = cells(o + 7, l)
-            st%e_rev(:, i) = cells(o + 8:o + 7 + d, l)
-            st%s_rev(:, i) = cells(o + 8 + d:o + 7 + 2*d, l)
-          end do
-        end do
-      end associate
-    end if
-    if (this%verlet .and. this%restart%step > 0) then
-      ! Verlet does not evaluate the rates at the step it starts from (they are in the
-      ! checkpoint); one trial evaluation, into a scratch array, gives the strain energy
-      allocate(scratch(size(this%st%acc, 1), n))
-      call this%halo%exchange(this%st%y)
-      call this%model%rate(this%lat, this%st%y, this%restart%t, scratch, energy(1), energy(2))
-    end if
-  end subroutine load_checkpoint
 
   !> The initial velocity field of &initial: uniform velocity plus a rigid spin (the filtered
   !> velocity of capped damping starts equal to it).

@@ -13,8 +13,11 @@ figure, quoted in docs/stability.md):
   spin            a free block spun at 100 rad/s for 10 revolutions keeps its shape and energy
   drift           (long) undamped energy drift per period, RK4 and Verlet at several dt
   kill_rank       one of two ranks killed mid-run: the job ends, the output stays readable
-  restart         checkpoint and restart: bitwise continuation, other rank counts, SIGUSR1
-  restart_errors  bad restarts: not a checkpoint, another model, missing files
+  restart         checkpoint and restart: bitwise continuation, other rank counts, the record
+                  of the continuation, SIGUSR1 to mpirun, `timeout --foreground -s TERM`
+                  on mpirun
+  restart_errors  bad restarts: truncated, foreign, corrupted (one byte), old-format, empty,
+                  another model's checkpoint, an output behind or not its own, missing files
   jobs            the job scripts' continuation after a signal (jobs/resubmit.sh)
 
 Usage: stability.py CASE --iem build/iem --mpiexec mpirun [--mpiexec-flags=--oversubscribe]
@@ -503,6 +506,7 @@ def cmd_restart(args) -> None:
                           f"{name}: restart on {ranks} rank(s)")
             if p is None:
                 continue
+            _check_continuation(b, "a.chk", ranks, f"{name} on {ranks} rank(s)")
             tol = 0.0 if ranks == 2 else 1e-12
             ok, worst = _files_equal(work / "full.h5", b, tol)
             rg.check(ok, f"{name}: continued on {ranks} rank(s) equals the uninterrupted run to "
@@ -530,6 +534,89 @@ def cmd_restart(args) -> None:
     if rg.run_ok(args, 2, work / "s2.nml", work, "signal: continued run") is not None:
         ok, worst = _files_equal(work / "full.h5", work / "s.h5", 0.0)
         rg.check(ok, f"signal: the continued run equals the uninterrupted one ({worst:.1e})")
+    _sigterm_to_mpirun(args)
+
+
+def _check_continuation(path: Path, chk: str, ranks: int, what: str) -> None:
+    """The continued output records its continuation: /continuations/0001 with the
+    checkpoint's path, time and step (those of its header), the rank count and a date."""
+    import struct
+    head = (path.parent / chk).read_bytes()[:1024]
+    step = struct.unpack_from("<q", head, 8 * 8)[0]
+    t = struct.unpack_from("<d", head, 512)[0]
+    try:
+        with h5py.File(path, "r") as f:
+            recs = sorted(f["continuations"])
+            a = dict(f["continuations"][recs[-1]].attrs)
+    except (OSError, KeyError) as exc:
+        rg.check(False, f"{what}: /continuations in the continued output ({exc})")
+        return
+    from iem_post.reader import IemFile
+    with IemFile(path, warn_incomplete=False) as r:
+        seen = r.continuations
+    ok = (recs == ["0001"] and a["checkpoint"].decode() == chk and int(a["step"]) == step and
+          len(seen) == 1 and seen[0]["checkpoint"] == chk and seen[0]["step"] == step and
+          float(a["time"]) == t and int(a["n_ranks"]) == ranks and
+          len(a["date"].decode()) == 25 and int(a["samples"]) > 0)
+    rg.check(ok, f"{what}: the output records its continuation {recs} from {chk} at step "
+                 f"{int(a['step'])}, t = {float(a['time']):.6g} s, {int(a['n_ranks'])} ranks, "
+                 f"{a['date'].decode()}")
+
+
+def _sigterm_to_mpirun(args) -> None:
+    """`timeout --foreground -s TERM T mpirun ... iem case` through the job scripts' run_iem:
+    Open MPI's
+    mpirun passes SIGTERM to the ranks one odls_base_sigkill_timeout (set by jobs/resubmit.sh)
+    after it got it, and SIGKILL one more later; they write the checkpoint and exit with 4 in
+    between; mpirun itself exits with 1 and timeout with 124; run_iem reads the checkpoint's
+    header and returns 4. The continued run equals the uninterrupted one."""
+    import os
+    import struct
+    import subprocess
+    import time
+    # a run long enough (1.6 s simulated, about 8 s on an idle machine) to be stopped
+    work = rg.scratch("restart_sigterm")
+    (work / "full.nml").write_text(restart_scene("elastic_rk4", "full.h5", 1.6, ""))
+    (work / "t.nml").write_text(restart_scene("elastic_rk4", "t.h5", 1.6, ""))
+    t0 = time.time()
+    if rg.run_ok(args, 2, work / "full.nml", work, "SIGTERM: uninterrupted run") is None:
+        return
+    wall_full = time.time() - t0
+    # mpirun sends the ranks SIGCONT at once, SIGTERM one grace period later (IEM_TERM_GRACE
+    # = 2 s here) and SIGKILL one more later: mpirun must have started the ranks when the
+    # signal comes (a SIGTERM while mpirun still starts the job ends it at once: about 2 s
+    # after the start here), and the run must still be going one grace later
+    after = max(3.0, min(0.2 * wall_full, 6.0))
+    # --foreground: one SIGTERM, to mpirun only; without it timeout signals mpirun and then
+    # its process group, mpirun again, and Open MPI 4.1's mpirun exits at once (status 1,
+    # ranks killed, no checkpoint) on a second signal that comes before it acted on the first
+    launch = " ".join(["timeout", "--foreground", "-s", "TERM", f"{after:.1f}"] +
+                      rg.mpi_command(args, 2, work / "t.nml"))
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", IEM_TERM_GRACE="2")
+    t0 = time.time()
+    p = subprocess.run(["bash", "-c", f"source '{ROOT / 'jobs' / 'resubmit.sh'}'; "
+                        f"run_iem t.nml {launch}"], cwd=work, env=env, text=True,
+                       capture_output=True, timeout=300)
+    took = time.time() - t0
+    chk = work / "t.chk"
+    sig = struct.unpack_from("<q", chk.read_bytes(), 17 * 8)[0] if chk.exists() else None
+    rg.check(p.returncode == 4 and "stopped by signal 15" in p.stdout and sig == 15 and
+             "exited with status 124" in p.stderr,
+             f"timeout --foreground -s TERM after {after:.1f} s on mpirun: iem wrote {chk.name} (signal "
+             f"{sig} in its header) and stopped; run_iem gives exit status {p.returncode} (4) "
+             f"from the launcher's 124, {took:.0f} s in all (uninterrupted: {wall_full:.0f} s)")
+    if p.returncode != 4:
+        print(p.stdout[-1000:], p.stderr[-3000:], sep="\n")
+    result("SIGTERM to mpirun: launcher exit status, run_iem's", (
+        p.stderr.split("exited with status ")[-1].split(";")[0] if "exited with" in p.stderr
+        else "?", p.returncode))
+    (work / "t2.nml").write_text(restart_scene("elastic_rk4", "t.h5", 1.6,
+                                               ", restart = 't.chk'"))
+    if rg.run_ok(args, 2, work / "t2.nml", work, "SIGTERM: continued run") is not None:
+        ok, worst = _files_equal(work / "full.h5", work / "t.h5", 0.0)
+        rg.check(ok, f"SIGTERM: the continued run equals the uninterrupted one ({worst:.1e})")
+        _check_continuation(work / "t.h5", "t.chk", 2, "SIGTERM")
 
 
 def cmd_jobs(args) -> None:
@@ -583,36 +670,81 @@ def cmd_jobs(args) -> None:
 
 
 def cmd_restart_errors(args) -> None:
-    """Bad restarts: a file that is not a checkpoint, a checkpoint of another model, a missing
-    checkpoint, and a missing output to append to each stop before anything is written, with
-    one message naming &run restart, from rank 0, exit status 2, and the output unchanged."""
+    """Bad restarts, each refused before anything is written: a checkpoint truncated, a file
+    of the right size that is not a checkpoint, one byte flipped in the body and in the header,
+    a checkpoint of the older format, an empty file, junk, a checkpoint of another model, an
+    output that ends before the checkpoint or is not the one it was written with, a missing
+    checkpoint or output. Each: exit status 2, one message from rank 0 naming &run restart and
+    what is wrong, and every file (output, sidecar, checkpoints) byte for byte unchanged."""
     import hashlib
+    import shutil
+    import struct
     work = rg.scratch("restart_errors")
     (work / "m.nml").write_text(restart_scene("elastic_rk4", "m.h5", 0.004,
                                               ", checkpoint_interval = 0.002"))
     rg.run_ok(args, 2, work / "m.nml", work, "a run that writes a checkpoint")
-    (work / "junk.chk").write_bytes(b"not a checkpoint" * 100)
-    other = restart_scene("elastic_rk4", "m.h5", 0.004, ", restart = 'm.chk'").replace(
-        "E = 25.0e9", "E = 30.0e9")
-    cases = {
-        "junk": (restart_scene("elastic_rk4", "m.h5", 0.004, ", restart = 'junk.chk'"),
-                 "is not an iem checkpoint file"),
-        "other_model": (other, "was written for a different model"),
-        "missing": (restart_scene("elastic_rk4", "m.h5", 0.004, ", restart = 'none.chk'"),
-                    "no such file"),
-        "no_output": (restart_scene("elastic_rk4", "gone.h5", 0.004, ", restart = 'm.chk'"),
-                      "does not exist: a restart appends"),
+    good = (work / "m.chk").read_bytes()
+    size = len(good)
+    rng = np.random.default_rng(7)
+
+    def flipped(at: int) -> bytes:
+        b = bytearray(good)
+        b[at] ^= 0x10
+        return bytes(b)
+
+    n_samples = struct.unpack_from("<q", good, 9 * 8)[0]
+    files = {
+        "trunc.chk": good[:size - 100],
+        "foreign.chk": rng.integers(0, 256, size, dtype=np.uint8).tobytes(),
+        "body.chk": flipped(8192 + 16 * 2 + (size - 8192 - 32) // 2 + 3),
+        "header.chk": flipped(512 + 3),
+        "pad.chk": flipped(4000),
+        "old.chk": good[:8] + struct.pack("<q", 1) + good[16:],
+        "empty.chk": b"",
+        "junk.chk": b"not a checkpoint" * 100,
     }
-    digest = hashlib.sha1((work / "m.h5").read_bytes()).hexdigest()
+    for name, data in files.items():
+        (work / name).write_bytes(data)
+    # outputs: one cut back before the checkpoint's frames, one from another run
+    shutil.copy(work / "m.h5", work / "short.h5")
+    shutil.copy(work / "m.h5", work / "alien.h5")
+    with h5py.File(work / "short.h5", "r+") as f:
+        f["frames/time"].resize((1,))
+    with h5py.File(work / "alien.h5", "r+") as f:
+        f["history/energy/kinetic"][n_samples - 1] *= 1.0 + 1e-9
+
+    def case(chk: str, out: str = "m.h5") -> str:
+        return restart_scene("elastic_rk4", out, 0.004, f", restart = '{chk}'")
+    cases = {
+        "truncated": (case("trunc.chk"), "the file is truncated or damaged"),
+        "foreign": (case("foreign.chk"), "is not an iem checkpoint file"),
+        "flip_body": (case("body.chk"), "fails its checksum"),
+        "flip_header": (case("header.chk"), "fails its checksum"),
+        "flip_padding": (case("pad.chk"), "fails its checksum"),
+        "old_format": (case("old.chk"), "format version 1"),
+        "empty": (case("empty.chk"), "is empty"),
+        "junk": (case("junk.chk"), "is not an iem checkpoint file"),
+        "other_model": (case("m.chk").replace("E = 25.0e9", "E = 30.0e9"),
+                        "was written for a different model"),
+        "output_behind": (case("m.chk", "short.h5"), "is beyond the end of output_file"),
+        "output_alien": (case("m.chk", "alien.h5"), "is not the output it was written with"),
+        "missing": (case("none.chk"), "no such file"),
+        "no_output": (case("m.chk", "gone.h5"), "does not exist: a restart appends"),
+    }
     for name, (text, expect) in cases.items():
         (work / f"{name}.nml").write_text(text)
+    before = {f.name: hashlib.sha1(f.read_bytes()).hexdigest() for f in work.iterdir()}
+    for name, (text, expect) in cases.items():
         p = rg.run_iem(args, 2, work / f"{name}.nml", work)
-        errs = [l for l in p.stderr.splitlines() if l.startswith("iem: error")]
-        same = hashlib.sha1((work / "m.h5").read_bytes()).hexdigest() == digest
-        rg.check(p.returncode == 2 and len(errs) == 1 and expect in errs[0] and "restart" in
-                 errs[0] and same and not (work / "gone.h5").exists(),
-                 f"{name}: exit {p.returncode}, one message naming restart ({expect}), output "
-                 f"unchanged")
+        errs = [l for l in p.stderr.splitlines() if l.startswith("iem: error")] or [""]
+        after = {f.name: hashlib.sha1(f.read_bytes()).hexdigest() for f in work.iterdir()}
+        same = after == before
+        # (a missing output is the input checks' refusal, naming output_file and restart)
+        named = "&run: restart = '" in errs[0] if name != "no_output" else "restart" in errs[0]
+        rg.check(p.returncode == 2 and len(errs) == 1 and expect in errs[0] and named and same,
+                 f"{name}: exit {p.returncode}, one message naming &run restart ({expect}), "
+                 f"every file unchanged ({same})")
+        print(f"    {errs[0] or p.stderr.strip()[-300:]}")
 
 
 def main() -> int:

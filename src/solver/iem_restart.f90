@@ -1,0 +1,301 @@
+!> Checkpoints and continued runs of a dynamic run (docs/output.md, "Exit status, checkpoints
+!> and continued runs"): the checks of a checkpoint before a restart writes anything, writing
+!> and loading checkpoints, the model's hash, and reopening the output to append to it.
+submodule (iem_simulation) iem_restart
+  use mpi_f08, only: MPI_Bcast
+  use iem_checkpoint, only: checkpoint_write, checkpoint_read_header, checkpoint_verify, &
+                            checkpoint_read, word_hash
+  use iem_h5_inspect, only: h5_output_inspect
+  implicit none
+
+contains
+
+  !> Check, before anything is written, that the checkpoint to continue from is whole and
+  !> belongs to this run: its header, exact size and checksum (every byte), this model, grid
+  !> and time step, and that output_file is the output it was written with and holds what it
+  !> covers. Refused (stat /= 0, msg naming &run restart and what is wrong) otherwise; nothing
+  !> is opened for writing. Collective.
+  module procedure check_restart
+    character(len=:), allocatable :: what, path, why, out
+    integer(i8) :: have(2)
+    real(wp) :: tail(7)
+    path = trim(this%cfg%run%restart)
+    out = trim(this%cfg%run%output_file)
+    call checkpoint_read_header(path, this%comm, this%restart, stat, why)
+    if (stat == 0) call checkpoint_verify(path, this%comm, this%restart, stat, why)
+    if (stat /= 0) then
+      msg = trim(this%cfg%input_file)//": &run: restart = '"//path//"' "//why
+      return
+    end if
+    what = ''
+    if (this%restart%nx /= this%grid%nx .or. this%restart%ny /= this%grid%ny) then
+      what = 'a '//itoa(this%restart%nx)//' x '//itoa(this%restart%ny)//' grid'
+    else if (this%restart%model_hash /= model_hash(this)) then
+      what = 'a different model (geometry, material, damping, conditions, loads, initial '// &
+             'state, integrator or time step differ)'
+    else if (this%restart%step > this%n_steps) then
+      what = 'step '//itoa(this%restart%step)//', beyond the '//itoa(this%n_steps)// &
+             ' steps of this run'
+    end if
+    if (len(what) > 0) then
+      stat = 1
+      msg = trim(this%cfg%input_file)//": &run: restart = '"//path//"' was written for "// &
+            what//'; it can only continue the run that wrote it'
+      return
+    end if
+    ! the output: rank 0 looks at it (read-only) and all agree
+    have = 0
+    tail = 0.0_wp
+    if (this%rank == 0) call h5_output_inspect(out, this%restart%n_frames, &
+      this%restart%n_samples, have(1), have(2), tail(1), tail(2:7), stat, why)
+    call MPI_Bcast(stat, 1, MPI_INTEGER, 0, this%comm)
+    call MPI_Bcast(have, 2, MPI_INTEGER8, 0, this%comm)
+    call MPI_Bcast(tail, 7, mpi_wp(), 0, this%comm)
+    what = ''
+    if (stat /= 0) then
+      what = "output_file = '"//out//"' "//why
+    else if (have(1) < this%restart%n_frames .or. have(2) < this%restart%n_samples) then
+      what = 'its time '//rtoa(this%restart%t)//" s is beyond the end of output_file = '"// &
+             out//"' ("//itoa(have(1))//' frames and '//itoa(have(2))//' history samples; '// &
+             'the checkpoint needs '//itoa(this%restart%n_frames)//' and '// &
+             itoa(this%restart%n_samples)//')'
+    else if (tail(1) /= this%restart%last_frame_time .or. &
+             any(tail(2:7) /= this%restart%last_sample)) then
+      what = "output_file = '"//out//"' is not the output it was written with (its frame "// &
+             itoa(this%restart%n_frames)//' or history sample '// &
+             itoa(this%restart%n_samples)//" differs from the checkpoint's record of them)"
+    end if
+    if (len(what) > 0) then
+      stat = 1
+      msg = trim(this%cfg%input_file)//": &run: restart = '"//path//"': "//what
+      return
+    end if
+    stat = 0
+    msg = ''
+    if (this%restart%step == 0) this%restart%step = -1
+  end procedure check_restart
+
+  !> Write a checkpoint of the state at the top of step k (before its rates): y and the rates
+  !> of every owned node, the springs' history, the run's counters, the signal the run stops
+  !> on (0: none). Collective.
+  module procedure write_checkpoint
+    type(checkpoint_header_t) :: h
+    real(wp), allocatable :: nodes(:, :), cells(:, :)
+    integer(i8), allocatable :: cg(:)
+    real(wp) :: sums(2)
+    integer :: l, ns, c, n
+    call flush_history(this, stat)
+    if (stat /= 0) then
+      msg = 'writing the history before a checkpoint failed'
+      return
+    end if
+    ns = this%model%n_state
+    h%nx = this%grid%nx
+    h%ny = this%grid%ny
+    h%n_state = ns
+    h%nonlinear = merge(1_i8, 0_i8, this%model%nonlinear)
+    h%depth = this%cfg%material%history_depth
+    if (this%model%nonlinear) h%depth = this%model%nl%state%depth
+    h%verlet = merge(1_i8, 0_i8, this%verlet)
+    h%step = k
+    h%n_samples = this%out%samples_written()
+    h%n_frames = this%out%frames_written()
+    h%n_ranks = this%n_ranks
+    h%model_hash = model_hash(this)
+    h%warned = merge(1_i8, 0_i8, this%warned)
+    h%n_nodes = this%grid%n_nodes
+    h%n_cells = this%grid%n_cells
+    h%t = t
+    h%dt = this%dt
+    h%e0 = this%e0
+    h%e_scale = this%e_scale
+    h%last_balance = this%last_balance
+    sums = [this%w_ext, this%w_damp]
+    call MPI_Allreduce(MPI_IN_PLACE, sums, 2, mpi_wp(), MPI_SUM, this%comm)
+    h%w_ext = sums(1)
+    h%w_damp = sums(2)
+    h%stop_signal = sig
+    h%last_sample = this%last_sample
+    h%last_frame_time = this%last_frame_time
+    n = this%lat%n_owned
+    allocate(nodes(2*ns - 2, n))
+    do l = 1, n
+      nodes(1:ns, l) = this%st%y(1:ns, l)
+      nodes(ns + 1:, l) = this%st%acc(:, l)
+    end do
+    cg = counted_cell_gids(this)
+    if (this%model%nonlinear) then
+      allocate(cells(12*(7 + 2*h%depth), size(cg)))
+      c = 0
+      do l = 1, this%lat%n_cells
+        if (.not. this%lat%cell_counted(l)) cycle
+        c = c + 1
+        cells(:, c) = pack_springs(this, l, int(h%depth))
+      end do
+    else
+      allocate(cells(0, 0))
+    end if
+    call checkpoint_write(trim(this%cfg%run%checkpoint_file), this%comm, h, &
+                          [this%w_ext, this%w_damp], this%lat%gid(1:n), nodes, cg, cells, &
+                          stat, msg)
+    if (stat == 0) call log_info('checkpoint: '//trim(this%cfg%run%checkpoint_file)// &
+                                 ' at step '//itoa(k)//', t = '//rtoa(t)//' s')
+  end procedure write_checkpoint
+
+  !> The history of the 12 springs of local cell l as one record.
+  function pack_springs(this, l, depth) result(r)
+    type(simulation_t), intent(in) :: this
+    integer, intent(in) :: l, depth
+    real(wp) :: r(12*(7 + 2*depth))
+    integer :: j, i, o
+    associate(st => this%model%nl%state)
+      do j = 1, 12
+        i = 12*(l - 1) + j
+        o = (j - 1)*(7 + 2*depth)
+        r(o + 1:o + 7) = [st%strain(i), st%stress(i), real(st%dir(i), wp), &
+                          real(st%count(i), wp), st%e_max_pos(i), st%e_max_neg(i), &
+                          this%model%nl%work(i)]
+        r(o + 8:o + 7 + depth) = st%e_rev(:, i)
+        r(o + 8 + depth:o + 7 + 2*depth) = st%s_rev(:, i)
+      end do
+    end associate
+  end function pack_springs
+
+  !> Restore the state of the checkpoint this run continues from. Collective.
+  module procedure load_checkpoint
+    real(wp), allocatable :: nodes(:, :), cells(:, :), scratch(:, :)
+    integer(i8), allocatable :: cg(:)
+    real(wp) :: energy(2)
+    integer :: l, ns, n, d, j, i, o
+    ns = this%model%n_state
+    n = this%lat%n_owned
+    d = int(this%restart%depth)
+    allocate(nodes(2*ns - 2, n))
+    allocate(cg(this%lat%n_cells))
+    do l = 1, this%lat%n_cells
+      cg(l) = this%lat%cell_gid(l)
+    end do
+    if (this%model%nonlinear) then
+      allocate(cells(12*(7 + 2*d), this%lat%n_cells))
+    else
+      allocate(cells(0, 0))
+      cg = cg(1:0)
+    end if
+    call checkpoint_read(trim(this%cfg%run%restart), this%comm, this%restart, energy, &
+                         this%lat%gid(1:n), nodes, cg, cells, stat, msg)
+    if (stat /= 0) then
+      msg = 'restart: '//msg
+      return
+    end if
+    do l = 1, n
+      this%st%y(1:ns, l) = nodes(1:ns, l)
+      this%st%acc(:, l) = nodes(ns + 1:, l)
+    end do
+    this%w_ext = energy(1)
+    this%w_damp = energy(2)
+    this%e0 = this%restart%e0
+    this%e_scale = this%restart%e_scale
+    this%last_balance = this%restart%last_balance
+    this%warned = this%restart%warned /= 0
+    this%last_sample = this%restart%last_sample
+    this%last_frame_time = this%restart%last_frame_time
+    if (this%verlet) then
+      this%snap = this%st%y(1:4, 1:n)
+      this%snap_step = this%restart%step
+      this%snap_time = this%restart%t
+    end if
+    if (this%model%nonlinear) then
+      associate(st => this%model%nl%state)
+        do l = 1, this%lat%n_cells
+          do j = 1, 12
+            i = 12*(l - 1) + j
+            o = (j - 1)*(7 + 2*d)
+            st%strain(i) = cells(o + 1, l)
+            st%stress(i) = cells(o + 2, l)
+            st%dir(i) = int(cells(o + 3, l), kind(st%dir))
+            st%count(i) = int(cells(o + 4, l), kind(st%count))
+            st%e_max_pos(i) = cells(o + 5, l)
+            st%e_max_neg(i) = cells(o + 6, l)
+            this%model%nl%work(i) = cells(o + 7, l)
+            st%e_rev(:, i) = cells(o + 8:o + 7 + d, l)
+            st%s_rev(:, i) = cells(o + 8 + d:o + 7 + 2*d, l)
+          end do
+        end do
+      end associate
+    end if
+    if (this%verlet .and. this%restart%step > 0) then
+      ! Verlet does not evaluate the rates at the step it starts from (they are in the
+      ! checkpoint); one trial evaluation, into a scratch array, gives the strain energy
+      allocate(scratch(size(this%st%acc, 1), n))
+      call this%halo%exchange(this%st%y)
+      call this%model%rate(this%lat, this%st%y, this%restart%t, scratch, energy(1), energy(2))
+    end if
+  end procedure load_checkpoint
+
+  !> Reopen the output of the interrupted run to append to it, and record the continuation
+  !> in it (/continuations).
+  module procedure reopen_output
+    character(len=64), allocatable :: names(:), sp_names(:)
+    integer :: k
+    allocate(names(size(this%cfg%probes)), sp_names(size(this%sp_probe)))
+    do k = 1, size(names)
+      names(k) = this%cfg%probes(k)%name
+    end do
+    do k = 1, size(sp_names)
+      sp_names(k) = this%cfg%probes(this%sp_probe(k))%name
+    end do
+    call this%out%reopen(trim(this%cfg%run%output_file), this%comm, this%grid%n_nodes, &
+      this%grid%n_cells, this%lat%gid(1:this%lat%n_owned), counted_cell_gids(this), names, &
+      sp_names, this%restart%n_samples, this%restart%n_frames, stat, msg)
+    if (stat /= 0) return
+    this%output_open = .true.
+    call this%out%record_continuation(trim(this%cfg%run%restart), this%restart%t, &
+                                      this%restart%step, stat, msg)
+  end procedure reopen_output
+
+  !> A 64-bit hash (the checkpoint's word hash, chained) of what defines the model (grid, material, damping, conditions,
+  !> loads, initial state, integrator, step): a checkpoint continues only the same model.
+  integer(i8) function model_hash(this) result(h)
+    type(simulation_t), intent(in) :: this
+    character(len=:), allocatable :: sig
+    character(len=64) :: b
+    integer :: k
+    associate(c => this%cfg)
+      sig = trim(c%geometry%plane)//trim(c%geometry%cell)//trim(c%damping%kind)// &
+            trim(c%run%integrator)
+      write(b, '(2i12)') this%grid%nx, this%grid%ny
+      sig = sig//b
+      call add([c%geometry%length, c%geometry%height, c%geometry%thickness, c%material%young, &
+                c%material%poisson, c%material%density, c%material%tensile_strength, &
+                c%material%compressive_strength, c%material%shear_strength, this%model%alpha, &
+                this%model%beta, this%model%omega_cap, c%initial%velocity, &
+                c%initial%angular_velocity, c%initial%center, this%dt])
+      write(b, '(l1, i6)') c%material%nonlinear, c%material%history_depth
+      sig = sig//b
+      do k = 1, size(c%bcs)
+        sig = sig//trim(c%bcs(k)%set%where)//trim(c%bcs(k)%kind)//trim(c%bcs(k)%tf%kind)
+        call add([c%bcs(k)%set%box, c%bcs(k)%set%point, c%bcs(k)%velocity, &
+                  merge(1.0_wp, 0.0_wp, c%bcs(k)%dof), c%bcs(k)%tf%t_start, c%bcs(k)%tf%t_ramp, &
+                  min(c%bcs(k)%t_release, 1.0e300_wp)])
+      end do
+      do k = 1, size(c%loads)
+        sig = sig//trim(c%loads(k)%set%where)//trim(c%loads(k)%kind)//trim(c%loads(k)%tf%kind)
+        call add([c%loads(k)%set%box, c%loads(k)%set%point, c%loads(k)%value, &
+                  c%loads(k)%tf%t_start, c%loads(k)%tf%t_ramp])
+      end do
+    end associate
+    h = 0
+    do k = 1, len(sig)
+      h = word_hash(int(k, i8), ieor(h, int(iachar(sig(k:k)), i8)))
+    end do
+  contains
+    subroutine add(v)
+      real(wp), intent(in) :: v(:)
+      integer :: j
+      do j = 1, size(v)
+        write(b, '(es25.17e3)') v(j)
+        sig = sig//trim(b)
+      end do
+    end subroutine add
+  end function model_hash
+end submodule iem_restart
