@@ -21,7 +21,8 @@ module iem_checkpoint
   use mpi_f08, only: MPI_Comm, MPI_File, MPI_Datatype, MPI_Status, MPI_Comm_rank, &
                      MPI_Comm_size, MPI_File_open, MPI_File_close, MPI_File_set_view, &
                      MPI_File_write_at, MPI_File_read_at, MPI_File_write_all, MPI_File_read_all, &
-                     MPI_Type_create_hindexed, MPI_Type_commit, MPI_Type_free, MPI_Bcast, &
+                     MPI_Type_create_hindexed, MPI_Type_contiguous, MPI_Type_commit, &
+                     MPI_Type_free, MPI_Bcast, &
                      MPI_Barrier, MPI_Allreduce, MPI_MAX, MPI_BXOR, MPI_INTEGER, MPI_INTEGER8, &
                      MPI_DOUBLE_PRECISION, MPI_MODE_CREATE, MPI_MODE_WRONLY, MPI_MODE_RDONLY, &
                      MPI_INFO_NULL, MPI_OFFSET_KIND, MPI_ADDRESS_KIND, MPI_STATUS_IGNORE, &
@@ -374,35 +375,42 @@ contains
     integer, intent(out) :: ierr
     integer, allocatable :: lens(:)
     integer(MPI_ADDRESS_KIND), allocatable :: disp(:)
-    type(MPI_Datatype) :: view
+    type(MPI_Datatype) :: view, record
     integer :: k, runs, e
+    ! one record (n reals) is the unit of the view and of the count, so that no count exceeds
+    ! the number of records of this rank (n times it may pass 2^31)
+    call MPI_Type_contiguous(n, MPI_DOUBLE_PRECISION, record, ierr)
+    call MPI_Type_commit(record, e)
+    ierr = max(ierr, e)
     ! contiguous runs of global indices
     allocate(lens(size(gids)), disp(size(gids)))
     runs = 0
     do k = 1, size(gids)
       if (k > 1) then
         if (gids(k) == gids(k - 1) + 1) then
-          lens(runs) = lens(runs) + n
+          lens(runs) = lens(runs) + 1
           cycle
         end if
       end if
       runs = runs + 1
-      lens(runs) = n
+      lens(runs) = 1
       disp(runs) = int(gids(k), MPI_ADDRESS_KIND)*8*n
     end do
-    call MPI_Type_create_hindexed(runs, lens(1:runs), disp(1:runs), MPI_DOUBLE_PRECISION, view, &
-                                  ierr)
+    call MPI_Type_create_hindexed(runs, lens(1:runs), disp(1:runs), record, view, e)
+    ierr = max(ierr, e)
     call MPI_Type_commit(view, e)
     ierr = max(ierr, e)
-    call MPI_File_set_view(fh, off, MPI_DOUBLE_PRECISION, view, 'native', MPI_INFO_NULL, e)
+    call MPI_File_set_view(fh, off, record, view, 'native', MPI_INFO_NULL, e)
     ierr = max(ierr, e)
     if (write) then
-      call MPI_File_write_all(fh, rec, n*size(gids), MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, e)
+      call MPI_File_write_all(fh, rec, size(gids), record, MPI_STATUS_IGNORE, e)
     else
-      call MPI_File_read_all(fh, rec, n*size(gids), MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, e)
+      call MPI_File_read_all(fh, rec, size(gids), record, MPI_STATUS_IGNORE, e)
     end if
     ierr = max(ierr, e)
     call MPI_Type_free(view, e)
+    ierr = max(ierr, e)
+    call MPI_Type_free(record, e)
     ierr = max(ierr, e)
   end subroutine transfer_records
 

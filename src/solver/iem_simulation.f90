@@ -30,8 +30,7 @@ module iem_simulation
   use iem_timers, only: timer_start, timer_stop, timer_total, timer_names, n_timers, t_output, &
                         peak_rss_bytes
   use iem_strings, only: itoa, rtoa
-  use iem_limits, only: grid_limit_message, springs_limit_message, max_springs_per_rank, &
-                        checkpoint_limit_message
+  use iem_limits, only: grid_limit_message, springs_limit_message, max_springs_per_rank
   use iem_memory, only: memory_case_t, memory_need_t, memory_estimate, memory_check
   use iem_alloc_guard, only: alloc_guard_t
   use iem_build_info, only: metis_idx
@@ -152,8 +151,7 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     integer(i8), allocatable :: n_selected(:)
     integer :: k, np, nb, n_state, nsp, ci, cj, l, ierr
-    integer(i8) :: most(3)
-    integer :: checkpoint(2)
+    integer(i8) :: most(1)
     real(wp) :: m_corner
     character(len=:), allocatable :: label
     type(alloc_guard_t) :: guard
@@ -189,10 +187,7 @@ contains
     label = trim(cfg%input_file)//': '//this%grid%label()
     if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
       rtoa(cfg%geometry%cell_size)//')'
-    ! a dynamic run writes checkpoints of n_state values a node and the springs' history
-    checkpoint = 0
-    if (.not. this%static) checkpoint = [n_state, cfg%material%history_depth]
-    msg = grid_limit_message(this%grid, this%n_ranks, cfg%material%nonlinear, label, checkpoint)
+    msg = grid_limit_message(this%grid, this%n_ranks, cfg%material%nonlinear, label)
     stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
     call check_memory(this, n_state, label, stat, msg)
@@ -200,13 +195,10 @@ contains
     call decompose(this%grid, comm, this%lat, this%halo, stat, msg, n_state)
     if (stat /= 0) return
     ! the same limits for the cells and nodes the ranks hold now: the largest over them
-    most = [12_i8*this%lat%n_cells, int(this%lat%n_owned, i8), int(this%lat%n_counted(), i8)]
-    call MPI_Allreduce(MPI_IN_PLACE, most, 3, MPI_INTEGER8, MPI_MAX, comm)
+    most = 12_i8*this%lat%n_cells
+    call MPI_Allreduce(MPI_IN_PLACE, most, 1, MPI_INTEGER8, MPI_MAX, comm)
     if (cfg%material%nonlinear .and. most(1) > max_springs_per_rank) then
       msg = springs_limit_message(label, most(1), this%grid%n_cells)
-    else if (checkpoint(1) > 0) then
-      msg = checkpoint_limit_message(label, checkpoint(1), cfg%material%nonlinear, &
-                                     checkpoint(2), most(2), most(3), this%n_ranks)
     end if
     stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
