@@ -18,6 +18,7 @@
 !> writing leaves the previous checkpoint intact.
 module iem_checkpoint
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
+  use iem_paths, only: mpiio_name
   use mpi_f08, only: MPI_Comm, MPI_File, MPI_Datatype, MPI_Status, MPI_Comm_rank, &
                      MPI_Comm_size, MPI_File_open, MPI_File_close, MPI_File_set_view, &
                      MPI_File_write_at, MPI_File_read_at, MPI_File_write_all, MPI_File_read_all, &
@@ -125,8 +126,8 @@ contains
     tmp = path//'.tmp'
     stat = 0
     msg = ''
-    call MPI_File_open(comm, tmp, ior(MPI_MODE_CREATE, MPI_MODE_WRONLY), MPI_INFO_NULL, fh, &
-                       ierr)
+    call MPI_File_open(comm, mpiio_name(tmp), ior(MPI_MODE_CREATE, MPI_MODE_WRONLY), &
+                       MPI_INFO_NULL, fh, ierr)
     call agree(ierr, 'cannot create '//tmp)
     if (stat /= 0) return
     if (rank == 0) call MPI_File_write_at(fh, 0_MPI_OFFSET_KIND, header_ints(hc), &
@@ -274,7 +275,7 @@ contains
     call MPI_Comm_size(comm, n_ranks)
     stat = 0
     msg = ''
-    call MPI_File_open(comm, path, MPI_MODE_RDONLY, MPI_INFO_NULL, fh, ierr)
+    call MPI_File_open(comm, mpiio_name(path), MPI_MODE_RDONLY, MPI_INFO_NULL, fh, ierr)
     call MPI_Allreduce(ierr, worst, 1, MPI_INTEGER, MPI_MAX, comm)
     if (worst /= 0) then
       stat = 1
@@ -333,7 +334,7 @@ contains
     stat = 0
     msg = ''
     energy = 0.0_wp
-    call MPI_File_open(comm, path, MPI_MODE_RDONLY, MPI_INFO_NULL, fh, ierr)
+    call MPI_File_open(comm, mpiio_name(path), MPI_MODE_RDONLY, MPI_INFO_NULL, fh, ierr)
     call MPI_Allreduce(ierr, worst, 1, MPI_INTEGER, MPI_MAX, comm)
     if (worst /= 0) then
       stat = 1

@@ -8,6 +8,7 @@ module iem_h5_output
   use iem_kinds, only: wp, i8, mpi_i8
   use iem_strings, only: itoa
   use iem_xdmf, only: xdmf_write, xdmf_frame_name, xdmf_path_of
+  use iem_paths, only: mpiio_name
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_Bcast, &
     MPI_INTEGER, MPI_LOGICAL, MPI_MAX, MPI_SUM, MPI_INFO_NULL, MPI_CHARACTER
   use hdf5, only: HID_T, HSIZE_T, SIZE_T, h5open_f, h5close_f, h5kind_to_type, &
@@ -212,8 +213,8 @@ contains
       call file_access_list(this, comm, fapl, stat, msg)
       if (stat /= 0) exit work
       ! EXCL guards against a file that appeared since the check above.
-      call h5fcreate_f(path, merge(H5F_ACC_TRUNC_F, H5F_ACC_EXCL_F, overwrite), this%file_id, &
-        ierr, access_prp=fapl)
+      call h5fcreate_f(mpiio_name(path), merge(H5F_ACC_TRUNC_F, H5F_ACC_EXCL_F, overwrite), &
+                       this%file_id, ierr, access_prp=fapl)
       if (failed(this, ierr, 'h5fcreate_f', '/', stat, msg)) exit work
       this%is_open = .true.
       call dataset_lists(this, stat, msg)
@@ -900,7 +901,7 @@ contains
     work: block
       call file_access_list(this, comm, fapl, stat, msg)
       if (stat /= 0) exit work
-      call h5fopen_f(path, H5F_ACC_RDWR_F, this%file_id, ierr, access_prp=fapl)
+      call h5fopen_f(mpiio_name(path), H5F_ACC_RDWR_F, this%file_id, ierr, access_prp=fapl)
       if (failed(this, ierr, 'h5fopen_f', '/', stat, msg)) exit work
       this%is_open = .true.
       call dataset_lists(this, stat, msg)

@@ -6,7 +6,7 @@ module iem_paths
   implicit none
   private
   public :: path_kind, folder_writable, file_readable, resolved_path, folder_of, name_of
-  public :: why_not_readable
+  public :: why_not_readable, mpiio_name
   public :: path_none, path_file, path_folder, path_special, path_unknown
   public :: name_max, path_max, mpiio_path_max
 
@@ -86,6 +86,18 @@ contains
       why = 'it cannot be looked at (a dangling link, or no permission)'
     end select
   end function why_not_readable
+
+  !> The name to give MPI-IO (and HDF5's MPI-IO driver) for path: './' is put before a name
+  !> without a folder, since Open MPI 4.1 fails to open a one-character one ('a').
+  pure function mpiio_name(path) result(name)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: name
+    if (index(path, '/') == 0) then
+      name = './'//path
+    else
+      name = path
+    end if
+  end function mpiio_name
 
   !> The folder part of path ('.' when it has none).
   pure function folder_of(path) result(folder)
