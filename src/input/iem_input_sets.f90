@@ -1,13 +1,12 @@
 !> Readers of the repeatable groups that act on node sets: &bc, &load and &probe.
 module iem_input_sets
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use iem_kinds, only: wp
   use iem_constants, only: unset_real
   use iem_strings, only: itoa, rtoa, lower
-  use iem_config, only: config_t, bc_config_t, load_config_t, probe_config_t, name_len, path_len
+  use iem_config, only: bc_config_t, load_config_t, probe_config_t, name_len
   use iem_namelist_text, only: nml_text_t, line_len
   use iem_input_checks, only: bad, check_keys, read_error, check_reals, check_logicals, &
-                              check_strings, check_set, check_tf, given, check_applies
+                              check_strings, check_set, check_tf, check_applies
   implicit none
   private
   public :: read_bc, read_load, read_probe
