@@ -35,6 +35,7 @@ contains
     cfg%geometry%cell = lower(cell)
   end subroutine parse_geometry
 
+  !> Check, parse and validate group g (&geometry) of the input into the configuration.
   subroutine read_geometry(text, g, cfg, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
@@ -146,6 +147,7 @@ contains
     cfg%material%shear_strength = shear_strength
   end subroutine parse_material
 
+  !> Check, parse and validate group g (&material) of the input into the configuration.
   subroutine read_material(text, g, cfg, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
@@ -246,6 +248,7 @@ contains
     cfg%damping%cap_frequency = cap_frequency
   end subroutine parse_damping
 
+  !> Check, parse and validate group g (&damping) of the input into the configuration.
   subroutine read_damping(text, g, cfg, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g

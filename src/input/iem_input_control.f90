@@ -52,6 +52,7 @@ contains
     cfg%run%checkpoint_file = checkpoint_file; cfg%run%restart = restart
   end subroutine parse_run
 
+  !> Check, parse and validate group g (&run) of the input into the configuration.
   subroutine read_run(text, g, cfg, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
@@ -203,6 +204,7 @@ contains
     cfg%static%mass = lower(mass)
   end subroutine parse_static
 
+  !> Check, parse and validate group g (&static) of the input into the configuration.
   subroutine read_static(text, g, cfg, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
@@ -271,6 +273,7 @@ contains
     cfg%initial%center = center
   end subroutine parse_initial
 
+  !> Check, parse and validate group g (&initial) of the input into the configuration.
   subroutine read_initial(text, g, cfg, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g

@@ -40,6 +40,7 @@ contains
     b%t_release = t_release
   end subroutine parse_bc
 
+  !> Check, parse and validate group g (&bc) of the input into the configuration.
   subroutine read_bc(text, g, ib, b, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g, ib
@@ -127,6 +128,7 @@ contains
     l%tf%kind = lower(time_function); l%tf%t_start = t_start; l%tf%t_ramp = t_ramp
   end subroutine parse_load
 
+  !> Check, parse and validate group g (&load) of the input into the configuration.
   subroutine read_load(text, g, il, l, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g, il
@@ -218,6 +220,7 @@ contains
     p%name = name; p%x = x; p%y = y; p%springs = springs
   end subroutine parse_probe
 
+  !> Check, parse and validate group g (&probe) of the input into the configuration.
   subroutine read_probe(text, g, ip, p, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g, ip
