@@ -101,8 +101,12 @@ contains
                                mat%tensile_strength, mat%compressive_strength, &
                                mat%shear_strength, er_pos, er_neg)
         call this%nl%init(lat%n_cells, er_pos, er_neg, [this%k%ce, this%k%ch, this%k%cg], &
-                          mat%history_depth)
+                          mat%history_depth, g)
       end associate
+      if (g%failed) then
+        call g%pass(guard)
+        return
+      end if
     end if
     mcell = 0.25_wp*this%density*grid%lx*grid%ly*grid%thickness
     allocate(this%mass(lat%n_owned), ij(2, lat%n_owned), this%f(2, lat%n_local), &

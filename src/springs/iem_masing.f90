@@ -217,6 +217,7 @@ contains
     integer(ip), intent(in), optional :: depth
     integer(ip), intent(out), optional :: stat
     integer(ip) :: d
+    integer :: ierr
     call this%free()
     d = masing_default_depth
     if (present(depth)) d = depth
@@ -232,7 +233,15 @@ contains
     this%depth = d
     allocate(this%strain(n_springs), this%stress(n_springs), this%dir(n_springs), &
              this%count(n_springs), this%e_rev(d, n_springs), this%s_rev(d, n_springs), &
-             this%e_max_pos(n_springs), this%e_max_neg(n_springs))
+             this%e_max_pos(n_springs), this%e_max_neg(n_springs), stat=ierr)
+    if (ierr /= 0) then
+      ! out of memory: the caller that asked for a status reports it
+      if (present(stat)) then
+        stat = 2_ip
+        return
+      end if
+      error stop 'masing_state_init: out of memory'
+    end if
     this%strain = 0.0_wp
     this%stress = 0.0_wp
     this%dir = 0

@@ -7,6 +7,7 @@ module iem_nonlinear_springs
   use iem_kinds, only: wp, ip
   use iem_masing, only: masing_state_t
   use iem_spring_constants, only: effective_elastic
+  use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
   public :: nonlinear_springs_t, springs_per_cell, spring_kind_edge, spring_kind_poisson
@@ -60,17 +61,32 @@ contains
   end subroutine reference_strains
 
   !> Allocate the virgin springs of n_cells cells, with the reference strains, the energy
-  !> coefficients (ce, ch, cg) and the stack depth of their history.
-  subroutine nonlinear_springs_init(this, n_cells, er_pos, er_neg, coeffs, depth)
+  !> coefficients (ce, ch, cg) and the stack depth of their history. Out of memory: noted
+  !> in guard (the springs are then incomplete), or the program stops without one.
+  subroutine nonlinear_springs_init(this, n_cells, er_pos, er_neg, coeffs, depth, guard)
     class(nonlinear_springs_t), intent(inout) :: this
     integer, intent(in) :: n_cells, depth
     real(wp), intent(in) :: er_pos(3), er_neg(3), coeffs(3)
+    type(alloc_guard_t), intent(inout), optional :: guard
+    type(alloc_guard_t) :: g
+    integer(ip) :: st
+    integer :: ierr
+    real(wp) :: bytes
     this%er_pos = er_pos
     this%er_neg = er_neg
     this%c2 = 2.0_wp*coeffs
-    call this%state%init(int(springs_per_cell*n_cells, ip), int(depth, ip))
+    bytes = real(springs_per_cell, wp)*n_cells*(48.0_wp + 16.0_wp*depth)
+    call this%state%init(int(springs_per_cell*n_cells, ip), int(depth, ip), st)
+    call g%note(int(st), 'the nonlinear springs of the rank', bytes)
     if (allocated(this%work)) deallocate(this%work)
-    allocate(this%work(springs_per_cell*n_cells))
+    if (.not. g%failed) then
+      allocate(this%work(springs_per_cell*n_cells), stat=ierr)
+      call g%note(ierr, 'the nonlinear springs of the rank', bytes)
+    end if
+    if (g%failed) then
+      call g%pass(guard)
+      return
+    end if
     this%work = 0.0_wp
   end subroutine nonlinear_springs_init
 
