@@ -2,7 +2,8 @@
 !> and continued runs"): the checks of a checkpoint before a restart writes anything, writing
 !> and loading checkpoints, the model's hash, and reopening the output to append to it.
 submodule (iem_simulation) iem_restart
-  use mpi_f08, only: MPI_Bcast
+  use mpi_f08, only: MPI_Bcast, MPI_SUM, MPI_INTEGER8
+  use iem_kinds, only: mpi_wp
   use iem_checkpoint, only: checkpoint_write, checkpoint_read_header, checkpoint_verify, &
                             checkpoint_read, word_hash
   use iem_h5_inspect, only: h5_output_inspect

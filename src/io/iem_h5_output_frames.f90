@@ -1,0 +1,192 @@
+!> /frames: one group of node fields (displacement, velocity) and cell fields a
+!> frame, and the series /frames/time and /frames/step.
+submodule (iem_h5_output) iem_h5_output_frames
+  use iem_strings, only: itoa
+  use iem_xdmf, only: xdmf_frame_name
+  use hdf5, only: HSIZE_T, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5gcreate_f, h5gopen_f, h5gclose_f, &
+    h5dcreate_f, h5dwrite_f, h5dclose_f, h5screate_simple_f, h5scopy_f, h5sselect_none_f, &
+    H5T_IEEE_F64LE
+  use iem_h5_primitives, only: failed, put_attr, prepare_append, select_runs, make_mem_space, &
+    close_space, one
+  implicit none
+
+contains
+
+  !> Adds the next frame group (u, v of the owned nodes) and appends to /frames/time, step.
+  module subroutine h5_output_write_frame(this, step, time, u, v, stat, msg)
+    ! u, v: (2, n_owned) in owned_gids order. Collective; rank 0 then rewrites the sidecar.
+    class(h5_output_t), intent(inout) :: this
+    integer(i8), intent(in) :: step
+    real(wp), intent(in) :: time, u(:, :), v(:, :)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: name, where
+    real(wp), allocatable :: grown(:)
+    integer(HID_T) :: gid, fspace, mspace
+    integer :: ierr
+    logical :: shapes_ok
+
+    stat = 0
+    msg = ''
+    if (.not. this%is_open) then
+      stat = 1
+      msg = 'iem_h5_output: write_frame on a file that is not open'
+      return
+    end if
+    ! A rank with wrong shapes writes nothing but still takes part in every collective call,
+    ! so that the other ranks do not hang; it reports the error afterwards.
+    shapes_ok = size(u, 1) == 2 .and. size(u, 2, kind=i8) == this%n_owned .and. &
+      size(v, 1) == 2 .and. size(v, 2, kind=i8) == this%n_owned
+    name = xdmf_frame_name(this%n_frames)
+    where = '/frames/'//name
+    gid = -1
+    fspace = -1
+    mspace = -1
+    work: block
+      call h5gcreate_f(this%frames_id, name, gid, ierr)
+      if (failed(this%path, ierr, 'h5gcreate_f', where, stat, msg)) exit work
+      call put_attr(this%path, gid, where, 'time', stat, msg, rval=time)
+      call put_attr(this%path, gid, where, 'step', stat, msg, lval=step)
+      call write_node_field(this, gid, where//'/displacement', 'displacement', u, shapes_ok, &
+        stat, msg)
+      call write_node_field(this, gid, where//'/velocity', 'velocity', v, shapes_ok, stat, msg)
+      if (stat /= 0) exit work
+
+      call prepare_append(this%path, this%rank, this%frames_time_id, '/frames/time', 0, &
+        this%n_frames, 1_i8, &
+        fspace, mspace, stat, msg)
+      if (stat /= 0) exit work
+      call h5dwrite_f(this%frames_time_id, this%real_mtype, [time], one, ierr, mspace, fspace, &
+        this%xfer_id)
+      if (failed(this%path, ierr, 'h5dwrite_f', '/frames/time', stat, msg)) exit work
+      call close_space(this%path, fspace, stat, msg)
+      call close_space(this%path, mspace, stat, msg)
+      call prepare_append(this%path, this%rank, this%frames_step_id, '/frames/step', 0, &
+        this%n_frames, 1_i8, &
+        fspace, mspace, stat, msg)
+      if (stat /= 0) exit work
+      call h5dwrite_f(this%frames_step_id, this%int_mtype, [step], one, ierr, mspace, fspace, &
+        this%xfer_id)
+      if (failed(this%path, ierr, 'h5dwrite_f', '/frames/step', stat, msg)) exit work
+
+      call h5gclose_f(gid, ierr)
+      gid = -1
+      if (failed(this%path, ierr, 'h5gclose_f', where, stat, msg)) exit work
+      ! Keeps the file readable if the run is killed later.
+      call h5fflush_f(this%file_id, H5F_SCOPE_GLOBAL_F, ierr)
+      if (failed(this%path, ierr, 'h5fflush_f', '/', stat, msg)) exit work
+    end block work
+    if (gid >= 0) call h5gclose_f(gid, ierr)
+    call close_space(this%path, fspace, stat, msg)
+    call close_space(this%path, mspace, stat, msg)
+
+    if (stat == 0) then
+      this%n_frames = this%n_frames + 1
+      if (this%rank == 0) then
+        if (this%n_frames > size(this%frame_times, kind=i8)) then
+          allocate (grown(2*size(this%frame_times)))
+          grown(:size(this%frame_times)) = this%frame_times
+          call move_alloc(grown, this%frame_times)
+        end if
+        this%frame_times(this%n_frames) = time
+      end if
+    end if
+    call write_sidecar(this, stat, msg)
+    if (.not. shapes_ok .and. stat /= 1) then
+      stat = 1
+      msg = 'iem_h5_output: write_frame: u and v must be (2, '//itoa(this%n_owned)// &
+        '), the owned nodes of this rank; nothing written from it to '//where//' in '//this%path
+    end if
+  end subroutine h5_output_write_frame
+
+  !> Creates the node dataset `name` (2, n_nodes) in group `gid` and writes this rank's nodes
+  !> from field(2, n_owned); if not shapes_ok, writes nothing but takes part. No-op if stat /= 0.
+  subroutine write_node_field(this, gid, where, name, field, shapes_ok, stat, msg)
+    class(h5_output_t), intent(in) :: this
+    integer(HID_T), intent(in) :: gid
+    character(len=*), intent(in) :: where, name
+    real(wp), intent(in) :: field(:, :)
+    logical, intent(in) :: shapes_ok
+    integer, intent(inout) :: stat
+    character(len=:), allocatable, intent(inout) :: msg
+    real(wp) :: dummy(2, 1)
+    integer(HID_T) :: did, fspace, mspace
+    integer :: ierr
+
+    if (stat /= 0) return
+    did = -1
+    fspace = -1
+    mspace = -1
+    work: block
+      call h5dcreate_f(gid, name, H5T_IEEE_F64LE, this%node_fspace, did, ierr, this%dcpl_id)
+      if (failed(this%path, ierr, 'h5dcreate_f', where, stat, msg)) exit work
+      if (shapes_ok) then
+        call h5dwrite_f(did, this%real_mtype, field, shape(field, HSIZE_T), ierr, &
+          this%node_mspace, this%node_fspace, this%xfer_id)
+      else
+        call h5scopy_f(this%node_fspace, fspace, ierr)
+        if (failed(this%path, ierr, 'h5scopy_f', where, stat, msg)) exit work
+        call h5sselect_none_f(fspace, ierr)
+        if (failed(this%path, ierr, 'h5sselect_none_f', where, stat, msg)) exit work
+        call make_mem_space(this%path, 2, 0_i8, where, mspace, stat, msg)
+        if (stat /= 0) exit work
+        dummy = 0
+        call h5dwrite_f(did, this%real_mtype, dummy, shape(dummy, HSIZE_T), ierr, mspace, &
+          fspace, this%xfer_id)
+      end if
+      if (failed(this%path, ierr, 'h5dwrite_f', where, stat, msg)) exit work
+    end block work
+    if (did >= 0) then
+      call h5dclose_f(did, ierr)
+      if (failed(this%path, ierr, 'h5dclose_f', where, stat, msg)) continue
+    end if
+    call close_space(this%path, fspace, stat, msg)
+    call close_space(this%path, mspace, stat, msg)
+  end subroutine write_node_field
+
+  !> Writes a cell field, values(n) for this rank's cells in the order given to write_mesh,
+  !> as /frames/<last frame>/<name> (n_cells values); collective, after write_frame.
+  module subroutine h5_output_write_cell_field(this, name, values, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    character(len=*), intent(in) :: name
+    real(wp), intent(in) :: values(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: where, frame
+    integer(HID_T) :: gid, did, fspace, mspace
+    integer :: ierr
+
+    stat = 0
+    msg = ''
+    if (.not. this%is_open .or. this%n_frames == 0 .or. .not. allocated(this%cell_start)) then
+      stat = 1
+      msg = 'iem_h5_output: write_cell_field needs an open file with its mesh and a frame'
+      return
+    end if
+    frame = xdmf_frame_name(this%n_frames - 1)
+    where = '/frames/'//frame//'/'//name
+    gid = -1
+    did = -1
+    fspace = -1
+    mspace = -1
+    work: block
+      call h5gopen_f(this%frames_id, frame, gid, ierr)
+      if (failed(this%path, ierr, 'h5gopen_f', '/frames/'//frame, stat, msg)) exit work
+      call h5screate_simple_f(1, [int(this%n_cells, HSIZE_T)], fspace, ierr)
+      if (failed(this%path, ierr, 'h5screate_simple_f', where, stat, msg)) exit work
+      call select_runs(this%path, fspace, where, 0, this%cell_start, this%cell_len, stat, msg)
+      call make_mem_space(this%path, 0, size(values, kind=i8), where, mspace, stat, msg)
+      if (stat /= 0) exit work
+      call h5dcreate_f(gid, name, H5T_IEEE_F64LE, fspace, did, ierr, this%dcpl_id)
+      if (failed(this%path, ierr, 'h5dcreate_f', where, stat, msg)) exit work
+      call h5dwrite_f(did, this%real_mtype, values, [size(values, kind=HSIZE_T)], ierr, &
+        mspace, fspace, this%xfer_id)
+      if (failed(this%path, ierr, 'h5dwrite_f', where, stat, msg)) exit work
+    end block work
+    if (did >= 0) call h5dclose_f(did, ierr)
+    if (gid >= 0) call h5gclose_f(gid, ierr)
+    call close_space(this%path, fspace, stat, msg)
+    call close_space(this%path, mspace, stat, msg)
+  end subroutine h5_output_write_cell_field
+
+end submodule iem_h5_output_frames

@@ -1,0 +1,171 @@
+!> /mesh: node coordinates and masses, cell corners, and the grid attributes.
+submodule (iem_h5_output) iem_h5_output_mesh
+  use iem_kinds, only: mpi_i8
+  use iem_strings, only: itoa
+  use mpi_f08, only: MPI_Allreduce, MPI_INTEGER, MPI_MAX, MPI_SUM
+  use hdf5, only: HSIZE_T, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5gopen_f, h5gclose_f, h5dcreate_f, &
+    h5dwrite_f, h5dclose_f, h5screate_simple_f, H5T_STD_I64LE, H5T_IEEE_F64LE
+  use iem_h5_primitives, only: failed, put_attr, select_runs, make_mem_space, close_space, &
+    gid_runs
+  implicit none
+
+contains
+
+  !> Writes /mesh and its attributes collectively, each rank its owned nodes and its cells.
+  module subroutine h5_output_write_mesh(this, coords, mass, cells, cell_gids, nx, ny, lx, ly, &
+      thickness, plane, stat, msg)
+    ! coords(2, n_owned), mass(n_owned) in owned_gids order; cells(4, n): 0-based global corner
+    ! ids of the cells at the 0-based global, strictly ascending indices cell_gids(n); every
+    ! cell is written by exactly one rank.
+    class(h5_output_t), intent(inout) :: this
+    real(wp), intent(in) :: coords(:, :), mass(:), lx, ly, thickness
+    integer(i8), intent(in) :: cells(:, :), cell_gids(:)
+    integer, intent(in) :: nx, ny
+    character(len=*), intent(in) :: plane
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: local_msg, tmp_msg
+    integer(i8), allocatable :: cstart(:), clen(:)
+    integer(HID_T) :: gid, did, cell_fspace, cell_mspace, mass_fspace, mass_mspace
+    integer(i8) :: n_my_cells, total
+    integer :: ierr, bad, any_bad, tmp_stat
+
+    stat = 0
+    msg = ''
+    if (.not. this%is_open) then
+      stat = 1
+      msg = 'iem_h5_output: write_mesh on a file that is not open'
+      return
+    end if
+    if (this%mesh_written) then
+      stat = 1
+      msg = 'iem_h5_output: write_mesh called twice for '//this%path
+      return
+    end if
+    n_my_cells = size(cell_gids, kind=i8)
+    local_msg = check_mesh_args(this, coords, mass, cells, cell_gids)
+    bad = merge(1, 0, len(local_msg) > 0)
+    call MPI_Allreduce(bad, any_bad, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    call MPI_Allreduce(n_my_cells, total, 1, mpi_i8(), MPI_SUM, this%comm)
+    if (any_bad /= 0) then
+      stat = 1
+      if (bad == 0) local_msg = 'invalid arguments on another rank'
+      msg = 'iem_h5_output: write_mesh: '//local_msg//' ('//this%path//')'
+      return
+    end if
+    if (total /= this%n_cells) then
+      stat = 1
+      msg = 'iem_h5_output: write_mesh: the ranks hold '//itoa(total)// &
+        ' cells, not n_cells = '//itoa(this%n_cells)//' ('//this%path//')'
+      return
+    end if
+
+    call gid_runs(cell_gids, cstart, clen)
+    this%cell_start = cstart
+    this%cell_len = clen
+    gid = -1
+    did = -1
+    cell_fspace = -1
+    cell_mspace = -1
+    mass_fspace = -1
+    mass_mspace = -1
+    work: block
+      call h5gopen_f(this%file_id, 'mesh', gid, ierr)
+      if (failed(this%path, ierr, 'h5gopen_f', '/mesh', stat, msg)) exit work
+
+      call h5dcreate_f(gid, 'coordinates', H5T_IEEE_F64LE, this%node_fspace, did, ierr, &
+        this%dcpl_id)
+      if (failed(this%path, ierr, 'h5dcreate_f', '/mesh/coordinates', stat, msg)) exit work
+      call h5dwrite_f(did, this%real_mtype, coords, shape(coords, HSIZE_T), ierr, &
+        this%node_mspace, this%node_fspace, this%xfer_id)
+      if (failed(this%path, ierr, 'h5dwrite_f', '/mesh/coordinates', stat, msg)) exit work
+      call h5dclose_f(did, ierr)
+      did = -1
+      if (failed(this%path, ierr, 'h5dclose_f', '/mesh/coordinates', stat, msg)) exit work
+
+      call h5screate_simple_f(2, [4_HSIZE_T, int(this%n_cells, HSIZE_T)], cell_fspace, ierr)
+      if (failed(this%path, ierr, 'h5screate_simple_f', '/mesh/cells', stat, msg)) exit work
+      call select_runs(this%path, cell_fspace, '/mesh/cells', 4, cstart, clen, stat, msg)
+      call make_mem_space(this%path, 4, n_my_cells, '/mesh/cells', cell_mspace, stat, msg)
+      if (stat /= 0) exit work
+      call h5dcreate_f(gid, 'cells', H5T_STD_I64LE, cell_fspace, did, ierr, this%dcpl_id)
+      if (failed(this%path, ierr, 'h5dcreate_f', '/mesh/cells', stat, msg)) exit work
+      call h5dwrite_f(did, this%int_mtype, cells, shape(cells, HSIZE_T), ierr, cell_mspace, &
+        cell_fspace, this%xfer_id)
+      if (failed(this%path, ierr, 'h5dwrite_f', '/mesh/cells', stat, msg)) exit work
+      call h5dclose_f(did, ierr)
+      did = -1
+      if (failed(this%path, ierr, 'h5dclose_f', '/mesh/cells', stat, msg)) exit work
+
+      call h5screate_simple_f(1, [int(this%n_nodes, HSIZE_T)], mass_fspace, ierr)
+      if (failed(this%path, ierr, 'h5screate_simple_f', '/mesh/mass', stat, msg)) exit work
+      call select_runs(this%path, mass_fspace, '/mesh/mass', 0, this%run_start, this%run_len, &
+        stat, msg)
+      call make_mem_space(this%path, 0, this%n_owned, '/mesh/mass', mass_mspace, stat, msg)
+      if (stat /= 0) exit work
+      call h5dcreate_f(gid, 'mass', H5T_IEEE_F64LE, mass_fspace, did, ierr, this%dcpl_id)
+      if (failed(this%path, ierr, 'h5dcreate_f', '/mesh/mass', stat, msg)) exit work
+      call h5dwrite_f(did, this%real_mtype, mass, shape(mass, HSIZE_T), ierr, mass_mspace, &
+        mass_fspace, this%xfer_id)
+      if (failed(this%path, ierr, 'h5dwrite_f', '/mesh/mass', stat, msg)) exit work
+      call h5dclose_f(did, ierr)
+      did = -1
+      if (failed(this%path, ierr, 'h5dclose_f', '/mesh/mass', stat, msg)) exit work
+
+      call put_attr(this%path, gid, '/mesh', 'nx', stat, msg, ival=nx)
+      call put_attr(this%path, gid, '/mesh', 'ny', stat, msg, ival=ny)
+      call put_attr(this%path, gid, '/mesh', 'lx', stat, msg, rval=lx)
+      call put_attr(this%path, gid, '/mesh', 'ly', stat, msg, rval=ly)
+      call put_attr(this%path, gid, '/mesh', 'thickness', stat, msg, rval=thickness)
+      call put_attr(this%path, gid, '/mesh', 'plane', stat, msg, text=plane)
+      if (stat /= 0) exit work
+      call h5gclose_f(gid, ierr)
+      gid = -1
+      if (failed(this%path, ierr, 'h5gclose_f', '/mesh', stat, msg)) exit work
+      call h5fflush_f(this%file_id, H5F_SCOPE_GLOBAL_F, ierr)
+      if (failed(this%path, ierr, 'h5fflush_f', '/', stat, msg)) exit work
+      this%mesh_written = .true.
+    end block work
+
+    tmp_stat = 0
+    tmp_msg = ''
+    if (did >= 0) call h5dclose_f(did, ierr)
+    if (gid >= 0) call h5gclose_f(gid, ierr)
+    call close_space(this%path, cell_fspace, tmp_stat, tmp_msg)
+    call close_space(this%path, cell_mspace, tmp_stat, tmp_msg)
+    call close_space(this%path, mass_fspace, tmp_stat, tmp_msg)
+    call close_space(this%path, mass_mspace, tmp_stat, tmp_msg)
+    if (stat == 0 .and. tmp_stat /= 0) then
+      stat = tmp_stat
+      msg = tmp_msg
+    end if
+    call write_sidecar(this, stat, msg)
+  end subroutine h5_output_write_mesh
+
+  !> Empty if the arguments of write_mesh are consistent on this rank, else what is wrong.
+  function check_mesh_args(this, coords, mass, cells, cell_gids) result(err)
+    class(h5_output_t), intent(in) :: this
+    real(wp), intent(in) :: coords(:, :), mass(:)
+    integer(i8), intent(in) :: cells(:, :), cell_gids(:)
+    character(len=:), allocatable :: err
+    integer :: n
+
+    err = ''
+    n = size(cell_gids)
+    if (size(coords, 1) /= 2 .or. size(coords, 2, kind=i8) /= this%n_owned .or. &
+        size(mass, kind=i8) /= this%n_owned) then
+      err = 'coords and mass must be (2, n_owned) and (n_owned)'
+    else if (size(cells, 1) /= 4 .or. size(cells, 2) /= n) then
+      err = 'cells must be (4, size(cell_gids))'
+    else if (n > 0) then
+      if (cell_gids(1) < 0 .or. cell_gids(n) >= this%n_cells) then
+        err = 'cell_gids out of 0..n_cells-1'
+      else if (any(cell_gids(2:) <= cell_gids(:n - 1))) then
+        err = 'cell_gids not strictly ascending'
+      else if (any(cells < 0 .or. cells >= this%n_nodes)) then
+        err = 'cells hold node ids out of 0..n_nodes-1'
+      end if
+    end if
+  end function check_mesh_args
+
+end submodule iem_h5_output_mesh

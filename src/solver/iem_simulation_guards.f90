@@ -1,0 +1,131 @@
+!> Guards of a dynamic run: non-finite states and the energy balance, which stop the
+!> run naming where it diverged and writing the last good state as a frame.
+submodule (iem_simulation) iem_simulation_guards
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use mpi_f08, only: MPI_INTEGER8, MPI_MIN, MPI_2DOUBLE_PRECISION, MPI_MAXLOC
+  use iem_logger, only: log_warn
+  implicit none
+
+contains
+
+  !> Guard at step k: every owned value finite (else stop with the last good frame); keep the
+  !> state as the last good one; the energy balance against the thresholds. Collective.
+  module subroutine check_state(this, k, t, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: n
+    logical :: finite
+    stat = 0
+    msg = ''
+    n = this%lat%n_owned
+    finite = all(ieee_is_finite(this%st%y(1:4, 1:n)))
+    call MPI_Allreduce(MPI_IN_PLACE, finite, 1, MPI_LOGICAL, MPI_LAND, this%comm)
+    if (.not. finite) then
+      call stop_nonfinite(this, k, t, this%st%y, this%snap, this%snap_step, this%snap_time, &
+                          stat, msg)
+      return
+    end if
+    this%snap = this%st%y(1:4, 1:n)
+    this%snap_step = k
+    this%snap_time = t
+  end subroutine check_state
+
+  !> Stop on non-finite values in the state bad(:, owned nodes) of step k: name the first node
+  !> (lowest global index) holding one, its rank and position, and write the last good state
+  !> good(4, n_owned) of step k_good as a frame. Collective.
+  module subroutine stop_nonfinite(this, k, t, bad, good, k_good, t_good, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k, k_good
+    real(wp), intent(in) :: t, t_good
+    real(wp), intent(in) :: bad(:, :), good(:, :)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(i8) :: first, mine
+    integer :: l, owner, stat2
+    real(wp) :: xy(2), big(2)
+    character(len=:), allocatable :: msg2
+    mine = huge(1_i8)
+    do l = 1, this%lat%n_owned
+      if (.not. all(ieee_is_finite(bad(1:4, l)))) then
+        mine = this%lat%gid(l)
+        exit
+      end if
+    end do
+    call MPI_Allreduce(mine, first, 1, MPI_INTEGER8, MPI_MIN, this%comm)
+    owner = -1
+    if (mine == first) owner = this%rank
+    call MPI_Allreduce(MPI_IN_PLACE, owner, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    stat = 3
+    if (first == huge(1_i8)) then
+      msg = 'the solution diverged (non-finite energy) at step '//itoa(k)//', t = '//rtoa(t)//' s'
+    else
+      xy = this%grid%node_xy(first)
+      msg = 'the solution diverged: non-finite values at step '//itoa(k)//', t = '//rtoa(t)// &
+            ' s, first at node '//itoa(first)//' (x = '//rtoa(xy(1))//', y = '//rtoa(xy(2))// &
+            ' m) on rank '//itoa(owner)
+    end if
+    ! where the growth was largest in the last good state
+    big = [-1.0_wp, -1.0_wp]
+    do l = 1, this%lat%n_owned
+      if (norm2(good(3:4, l)) > big(1)) big = [norm2(good(3:4, l)), real(this%lat%gid(l), wp)]
+    end do
+    call MPI_Allreduce(MPI_IN_PLACE, big, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
+    xy = this%grid%node_xy(int(big(2), i8))
+    msg = msg//', with dt = '//rtoa(this%dt)//' s (stability limit '//rtoa(this%dt_limit)// &
+          ' s); in the last good state (step '//itoa(k_good)//', written as the last '// &
+          'frame) the fastest node was '//itoa(int(big(2), i8))//' (x = '//rtoa(xy(1))// &
+          ', y = '//rtoa(xy(2))//' m, speed '//rtoa(big(1))//' m/s)'
+    call flush_history(this, stat2)
+    call this%out%write_frame(k_good, t_good, good(1:2, :), good(3:4, :), stat2, msg2)
+  end subroutine stop_nonfinite
+
+  !> Energy guard after a history sample: warn once above energy_warn, stop above
+  !> energy_stop, naming the node with the largest speed (where a divergence grows fastest)
+  !> and writing the current state as the last frame. Collective.
+  module subroutine energy_guard(this, k, t, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    real(wp) :: err, fast(2), xy(2)
+    integer :: l, stat2
+    logical :: warn, halt
+    character(len=:), allocatable :: where, msg2
+    stat = 0
+    msg = ''
+    err = this%last_balance
+    warn = this%cfg%run%energy_warn > 0.0_wp .and. err > this%cfg%run%energy_warn .and. &
+           .not. this%warned
+    halt = this%cfg%run%energy_stop > 0.0_wp .and. err > this%cfg%run%energy_stop
+    if (.not. (warn .or. halt)) return
+    ! the fastest node: (speed, global index) with MAXLOC
+    fast = [-1.0_wp, -1.0_wp]
+    do l = 1, this%lat%n_owned
+      if (norm2(this%st%y(3:4, l)) > fast(1)) fast = [norm2(this%st%y(3:4, l)), &
+                                                       real(this%lat%gid(l), wp)]
+    end do
+    call MPI_Allreduce(MPI_IN_PLACE, fast, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
+    xy = this%grid%node_xy(int(fast(2), i8))
+    where = 'fastest node '//itoa(int(fast(2), i8))//' (x = '//rtoa(xy(1))//', y = '// &
+            rtoa(xy(2))//' m, speed '//rtoa(fast(1))//' m/s)'
+    if (halt) then
+      stat = 3
+      msg = 'energy-balance error '//rtoa(err)//' > energy_stop = '// &
+            rtoa(this%cfg%run%energy_stop)//' at step '//itoa(k)//', t = '//rtoa(t)//' s; '// &
+            where//'; dt = '//rtoa(this%dt)//' s (stability limit '//rtoa(this%dt_limit)// &
+            ' s); the state at this step is the last frame'
+      call flush_history(this, stat2)
+      call write_frame(this, k, t, stat2)
+      return
+    end if
+    this%warned = .true.
+    call log_warn('energy-balance error '//rtoa(err)//' > energy_warn = '// &
+                  rtoa(this%cfg%run%energy_warn)//' at step '//itoa(k)//', t = '//rtoa(t)// &
+                  ' s; '//where//' (warned once; the run goes on)')
+  end subroutine energy_guard
+
+end submodule iem_simulation_guards

@@ -1,0 +1,251 @@
+!> Output recording of a run: the output file's creation, history samples (energies,
+!> probes, spring probes) gathered into the buffer and flushed to the file, and frames.
+submodule (iem_simulation) iem_simulation_output
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use mpi_f08, only: MPI_SUM
+  use iem_kinds, only: mpi_wp
+  use iem_relaxation, only: relax_check_interval
+  use iem_cell_kernel, only: cell_strain_measures
+  use iem_nonlinear_springs, only: springs_per_cell, spring_kind, spring_strains
+  use iem_build_info, only: iem_version
+  implicit none
+
+contains
+
+  !> Create the output file, or reopen that of the interrupted run when continuing one.
+  module subroutine open_output(this, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    if (this%restart%step > 0) then
+      call reopen_output(this, stat, msg)
+    else
+      call create_output(this, stat, msg)
+    end if
+  end subroutine open_output
+
+  !> Global indices of this rank's counted cells, ascending.
+  module function counted_cell_gids(this) result(g)
+    type(simulation_t), intent(in) :: this
+    integer(i8), allocatable :: g(:)
+    integer :: l, k
+    allocate(g(this%lat%n_counted()))
+    k = 0
+    do l = 1, this%lat%n_cells
+      if (.not. this%lat%cell_counted(l)) cycle
+      k = k + 1
+      g(k) = this%lat%cell_gid(l)
+    end do
+  end function counted_cell_gids
+
+  !> Create the output file and write the mesh, the spring probes and the static settings.
+  subroutine create_output(this, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=64), allocatable :: names(:), sp_names(:)
+    real(wp), allocatable :: pxy(:, :), nxy(:, :), sp_xy(:, :)
+    integer(i8), allocatable :: cells(:, :), cell_gids(:)
+    real(wp), allocatable :: coords(:, :)
+    integer :: k, l, nc, ierr
+    integer(i8) :: nodes(4)
+    type(alloc_guard_t) :: guard
+
+    associate(p => this%cfg%probes)
+      allocate(names(size(p)), pxy(2, size(p)), nxy(2, size(p)))
+      do k = 1, size(p)
+        names(k) = p(k)%name
+        pxy(:, k) = [p(k)%x, p(k)%y]
+        nxy(:, k) = this%grid%node_xy(this%probe_gid(k))
+      end do
+    end associate
+    call this%out%create(trim(this%cfg%run%output_file), this%comm, this%cfg%run%overwrite, &
+      iem_version, trim(this%cfg%input_file), this%cfg%input_text, trim(this%cfg%run%analysis), &
+      this%grid%n_nodes, this%grid%n_cells, this%lat%gid(1:this%lat%n_owned), names, pxy, &
+      this%probe_gid, nxy, stat, msg)
+    if (stat /= 0) return
+    this%output_open = .true.
+    nc = this%lat%n_counted()
+    allocate(coords(2, this%lat%n_owned), cells(4, nc), cell_gids(nc), stat=ierr)
+    call guard%note(ierr, 'the mesh output buffers', 16.0_wp*this%lat%n_owned + 40.0_wp*nc)
+    call guard%agree(this%comm, this%grid%label(), stat, msg)
+    if (stat /= 0) return
+    do l = 1, this%lat%n_owned
+      coords(:, l) = this%grid%node_xy(this%lat%gid(l))
+    end do
+    k = 0
+    do l = 1, this%lat%n_cells
+      if (.not. this%lat%cell_counted(l)) cycle
+      k = k + 1
+      nodes = this%lat%gid(this%lat%cell_nodes(:, l))
+      cells(:, k) = nodes
+      cell_gids(k) = this%lat%cell_gid(l)
+    end do
+    call this%out%write_mesh(coords, this%model%mass, cells, cell_gids, this%grid%nx, &
+      this%grid%ny, this%grid%lx, this%grid%ly, this%grid%thickness, &
+      trim(this%cfg%geometry%plane), stat, msg)
+    if (stat /= 0) return
+    if (size(this%sp_probe) > 0) then
+      allocate(sp_names(size(this%sp_probe)), sp_xy(2, size(this%sp_probe)))
+      do k = 1, size(this%sp_probe)
+        sp_names(k) = this%cfg%probes(this%sp_probe(k))%name
+        sp_xy(:, k) = [this%cfg%probes(this%sp_probe(k))%x, this%cfg%probes(this%sp_probe(k))%y]
+      end do
+      call this%out%define_spring_probes(sp_names, this%sp_cell, sp_xy, stat, msg)
+      if (stat /= 0) return
+    end if
+    if (.not. this%static) return
+    associate(s => this%cfg%static)
+      call this%out%write_static_settings(s%load_steps, s%tolerance, s%max_iterations, &
+        trim(s%method), trim(s%mass), relax_check_interval, stat, msg)
+    end associate
+  end subroutine create_output
+
+  !> Gather one history sample (global sums with one Allreduce) into the buffer.
+  module subroutine record_sample(this, k, t, diverged)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    logical, intent(out) :: diverged
+    integer :: p, np, b, stat, o
+    real(wp) :: ke, se, e, scale
+
+    np = size(this%probe_gid)
+    this%sample = 0.0_wp
+    this%sample(1) = this%model%kinetic_energy(this%st%y)
+    this%sample(2) = this%model%strain_energy()
+    this%sample(3) = this%w_ext
+    this%sample(4) = this%w_damp
+    do p = 1, np
+      if (this%probe_local(p) > 0) then
+        this%sample(4 + 4*(p - 1) + 1:4 + 4*p) = this%st%y(1:4, this%probe_local(p))
+      end if
+    end do
+    o = 4 + 4*np
+    do p = 1, size(this%sp_probe)
+      if (this%sp_local(p) > 0) call spring_sample(this, this%sp_local(p), &
+        this%sample(o + 1:o + springs_per_cell), &
+        this%sample(o + springs_per_cell + 1:o + 2*springs_per_cell))
+      o = o + 2*springs_per_cell
+    end do
+    call MPI_Allreduce(MPI_IN_PLACE, this%sample, size(this%sample), mpi_wp(), MPI_SUM, this%comm)
+    diverged = .not. all(ieee_is_finite(this%sample))
+    if (diverged) return
+    if (this%n_buf == size(this%h_time)) call flush_history(this, stat)
+    b = this%n_buf + 1
+    this%n_buf = b
+    ke = this%sample(1)
+    se = this%sample(2)
+    e = ke + se
+    if (k == 0) then
+      this%e0 = e
+      this%e_scale = 0.0_wp
+    end if
+    ! scale: the largest energy the run has held so far, so that the error stays meaningful
+    ! when the current energy passes through zero
+    this%e_scale = max(this%e_scale, abs(this%sample(3)), e, this%sample(4))
+    scale = max(this%e_scale, tiny(1.0_wp))
+    this%last_balance = abs(e + this%sample(4) - this%sample(3) - this%e0)/scale
+    if (k == 0) this%last_balance = 0.0_wp
+    this%h_time(b) = t
+    this%h_step(b) = k
+    this%h_energy(:, b) = [ke, se, this%sample(3), this%sample(4), this%last_balance]
+    this%last_sample(1) = t
+    this%last_sample(2:6) = this%h_energy(:, b)
+    do p = 1, np
+      this%h_pu(:, p, b) = this%sample(4 + 4*(p - 1) + 1:4 + 4*(p - 1) + 2)
+      this%h_pv(:, p, b) = this%sample(4 + 4*(p - 1) + 3:4 + 4*p)
+    end do
+    o = 4 + 4*np
+    do p = 1, size(this%sp_probe)
+      this%h_sp_e(:, p, b) = this%sample(o + 1:o + springs_per_cell)
+      this%h_sp_s(:, p, b) = this%sample(o + springs_per_cell + 1:o + 2*springs_per_cell)
+      o = o + 2*springs_per_cell
+    end do
+  end subroutine record_sample
+
+  !> Degree of nonlinearity of each counted cell at the committed state: the smallest secant
+  !> over initial stiffness of its 12 springs (1: elastic; towards 0: far into the nonlinear
+  !> range). Each spring's secant psi/e is clipped to [0, 1] (after a reversal the stress can
+  !> pass zero before the strain does); a spring at zero strain counts as 1.
+  subroutine nonlinearity_degree(this)
+    type(simulation_t), intent(inout) :: this
+    integer :: c, k, j, i
+    real(wp) :: d, e
+    k = 0
+    do c = 1, this%lat%n_cells
+      if (.not. this%lat%cell_counted(c)) cycle
+      k = k + 1
+      d = 1.0_wp
+      do j = 1, springs_per_cell
+        i = springs_per_cell*(c - 1) + j
+        e = this%model%nl%state%strain(i)
+        if (e /= 0.0_wp) d = min(d, max(0.0_wp, min(1.0_wp, this%model%nl%state%stress(i)/e)))
+      end do
+      this%cell_degree(k) = d
+    end do
+  end subroutine nonlinearity_degree
+
+  !> Strains and stresses of the 12 springs of local cell c at the current state (committed:
+  !> samples are taken at accepted states).
+  subroutine spring_sample(this, c, strain, stress)
+    type(simulation_t), intent(in) :: this
+    integer, intent(in) :: c
+    real(wp), intent(out) :: strain(springs_per_cell), stress(springs_per_cell)
+    real(wp) :: u(2, 4), ep(4), sh(4)
+    integer :: q, j
+    do q = 1, 4
+      u(:, q) = this%st%y(1:2, this%lat%cell_nodes(q, c))
+    end do
+    call cell_strain_measures(this%model%k, u, ep, sh)
+    strain = spring_strains(ep, sh)
+    do j = 1, springs_per_cell
+      if (this%model%nonlinear) then
+        stress(j) = this%moduli(spring_kind(j))* &
+                    this%model%nl%state%stress(springs_per_cell*(c - 1) + j)
+      else
+        stress(j) = this%moduli(spring_kind(j))*strain(j)
+      end if
+    end do
+  end subroutine spring_sample
+
+  !> Write the buffered history samples to the file.
+  module subroutine flush_history(this, stat)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable :: msg
+    integer :: n
+    stat = 0
+    n = this%n_buf
+    if (n == 0 .or. .not. this%output_open) return
+    if (this%static) then
+      call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
+        this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg, &
+        load_factor=this%h_load(1:n), iterations=this%h_iter(1:n), residual=this%h_res(1:n))
+    else
+      call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
+        this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg)
+    end if
+    if (stat == 0 .and. size(this%sp_probe) > 0) call this%out%write_spring_history(n, &
+      this%h_sp_e(:, :, 1:n), this%h_sp_s(:, :, 1:n), stat, msg)
+    this%n_buf = 0
+  end subroutine flush_history
+
+  !> Write a frame of the state at step k (and the cells' degree of nonlinearity).
+  module subroutine write_frame(this, k, t, stat)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t
+    integer, intent(out) :: stat
+    character(len=:), allocatable :: msg
+    integer :: n
+    n = this%lat%n_owned
+    ! the sections are copied to contiguous temporaries at output time only
+    call this%out%write_frame(k, t, this%st%y(1:2, 1:n), this%st%y(3:4, 1:n), stat, msg)
+    this%last_frame_time = t
+    if (stat /= 0 .or. .not. this%model%nonlinear) return
+    call nonlinearity_degree(this)
+    call this%out%write_cell_field('nonlinearity', this%cell_degree, stat, msg)
+  end subroutine write_frame
+
+end submodule iem_simulation_output

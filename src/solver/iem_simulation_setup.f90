@@ -1,0 +1,244 @@
+!> Set-up of a run: checks of what this build and the machine can hold, the
+!> decomposition, the model, the time step (or load steps), probes and spring probes, the
+!> history buffer; and the initial velocity field.
+submodule (iem_simulation) iem_simulation_setup
+  use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_SUM, MPI_INTEGER8
+  use iem_config, only: damping_config_t
+  use iem_decomposition, only: decompose
+  use iem_stable_dt, only: cell_omega_max, rk4_stable_dt, verlet_stable_dt
+  use iem_nonlinear_springs, only: springs_per_cell
+  use iem_spring_constants, only: spring_moduli
+  use iem_logger, only: log_warn
+  use iem_limits, only: grid_limit_message, springs_limit_message, max_springs_per_rank
+  use iem_memory, only: memory_case_t, memory_need_t, memory_estimate, memory_check
+  use iem_build_info, only: metis_idx
+  implicit none
+
+  !> Samples of the history buffer (written when full and at every frame) and its energies.
+  integer, parameter :: n_energy = 5, history_chunk = 256
+  !> Most steps a dynamic run may take: 2^53, where the time t + dt stops advancing.
+  real(wp), parameter :: max_steps = 9007199254740992.0_wp
+
+contains
+
+  !> Build everything for the run; collective; stat /= 0 with msg on every rank on an error
+  !> found before any output is written.
+  module subroutine simulation_setup(this, cfg, comm, stat, msg)
+    class(simulation_t), intent(inout) :: this
+    type(config_t), intent(in) :: cfg
+    type(MPI_Comm), intent(in) :: comm
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(i8), allocatable :: n_selected(:)
+    integer :: k, np, nb, n_state, nsp, ci, cj, l, ierr
+    integer(i8) :: most(1)
+    real(wp) :: m_corner
+    character(len=:), allocatable :: label
+    type(alloc_guard_t) :: guard
+
+    this%cfg = cfg
+    this%static = cfg%run%analysis == 'static'
+    this%verlet = .not. this%static .and. cfg%run%integrator == 'verlet'
+    if (this%static) then
+      ! a static run has no damping: relaxation brings its own
+      if (cfg%damping%kind /= 'none') call log_warn('&damping is ignored in a static analysis '// &
+        '(dynamic relaxation damps its own fictitious motion)')
+      this%cfg%damping = damping_config_t()
+    end if
+    this%comm = comm
+    ! volumetric locking of the paper's cell: its Poisson springs grow like 1/(1 - nu'^2)
+    if (cfg%geometry%cell == 'paper' .and. cfg%geometry%plane == 'strain' .and. &
+        cfg%material%poisson >= 0.45_wp) call log_warn("nu = "// &
+      rtoa(cfg%material%poisson)//" in plane strain: the paper's cell locks (too stiff "// &
+      "in bending: by 14% at nu = 0.45, 40% at 0.49, 86% at 0.499 with 8 cells through the "// &
+      "depth, docs/stability.md); cell = 'bending' does not")
+    call MPI_Comm_rank(comm, this%rank)
+    call MPI_Comm_size(comm, this%n_ranks)
+    associate(g => cfg%geometry)
+      call this%grid%init(g%length, g%height, g%thickness, g%nx, g%ny)
+    end associate
+
+    ! time step: cell-level bound of omega_max, damping included
+    m_corner = 0.25_wp*cfg%material%density*this%grid%lx*this%grid%ly*this%grid%thickness
+    ! capped damping carries the filtered velocity as two more state values a node
+    n_state = 4
+    if (this%cfg%damping%kind == 'capped') n_state = 6
+    ! before anything is allocated: what this build can represent, and the memory it needs
+    label = trim(cfg%input_file)//': '//this%grid%label()
+    if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
+      rtoa(cfg%geometry%cell_size)//')'
+    msg = grid_limit_message(this%grid, this%n_ranks, cfg%material%nonlinear, label)
+    stat = merge(1, 0, len(msg) > 0)
+    if (stat /= 0) return
+    call check_memory(this, n_state, label, stat, msg)
+    if (stat /= 0) return
+    call decompose(this%grid, comm, this%lat, this%halo, stat, msg, n_state)
+    if (stat /= 0) return
+    ! the same limits for the cells and nodes the ranks hold now: the largest over them
+    most = 12_i8*this%lat%n_cells
+    call MPI_Allreduce(MPI_IN_PLACE, most, 1, MPI_INTEGER8, MPI_MAX, comm)
+    if (cfg%material%nonlinear .and. most(1) > max_springs_per_rank) then
+      msg = springs_limit_message(label, most(1), this%grid%n_cells)
+    end if
+    stat = merge(1, 0, len(msg) > 0)
+    if (stat /= 0) return
+    nb = size(cfg%bcs)
+    allocate(n_selected(nb + size(cfg%loads)))
+    call this%model%init(this%cfg, this%grid, this%lat, n_selected, guard)
+    call guard%agree(comm, label, stat, msg)
+    if (stat /= 0) return
+    call MPI_Allreduce(MPI_IN_PLACE, n_selected, size(n_selected), MPI_INTEGER8, MPI_SUM, comm)
+    do k = 1, size(n_selected)
+      if (n_selected(k) == 0) then
+        stat = 1
+        if (k <= nb) then
+          msg = trim(cfg%input_file)//': &bc #'//itoa(k)//" ('"//trim(cfg%bcs(k)%name)// &
+                "'): where = '"//trim(cfg%bcs(k)%set%where)//"' selects no node"
+        else
+          msg = trim(cfg%input_file)//': &load #'//itoa(k - nb)//" ('"// &
+                trim(cfg%loads(k - nb)%name)//"'): where = '"// &
+                trim(cfg%loads(k - nb)%set%where)//"' selects no node"
+        end if
+        return
+      end if
+    end do
+    this%omega_max = cell_omega_max(this%model%k, m_corner)
+    if (this%static) then
+      ! load steps along the pseudo-time of the load path; dt is one load step's length
+      call this%relax%init(this%model, this%lat, comm, cfg%static, cfg%run%t_end, guard)
+      call guard%agree(comm, label, stat, msg)
+      if (stat /= 0) return
+      this%n_steps = cfg%static%load_steps
+      this%dt = cfg%run%t_end/real(this%n_steps, wp)
+    else
+      if (this%verlet) then
+        this%dt_limit = verlet_stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
+                                         this%model%omega_cap)
+      else
+        this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
+                                      this%model%omega_cap)
+      end if
+      if (cfg%run%dt > 0.0_wp) then
+        if (cfg%run%dt > this%dt_limit .and. cfg%run%allow_unstable_dt) then
+          call log_warn('&run: dt = '//rtoa(cfg%run%dt)//' s is '// &
+            rtoa(cfg%run%dt/this%dt_limit)//' times the stability limit '// &
+            rtoa(this%dt_limit)//' s of '//integrator_name(this)// &
+            ' (allow_unstable_dt = .true.): expect the run to diverge; the guards will stop it')
+        else if (cfg%run%dt > this%dt_limit) then
+          stat = 1
+          msg = trim(cfg%input_file)//': &run: dt = '//rtoa(cfg%run%dt)// &
+                ' s is above the stability limit '//rtoa(this%dt_limit)// &
+                ' s of '//integrator_name(this)//' for this grid and damping (omega_max = '// &
+                rtoa(this%omega_max)// &
+                ' rad/s); use dt <= '//rtoa(this%dt_limit)//' or dt = 0 (automatic), or '// &
+                'allow_unstable_dt = .true. to run it anyway'
+          return
+        end if
+        this%dt = cfg%run%dt
+      else
+        this%dt = cfg%run%dt_safety*this%dt_limit
+      end if
+      ! whole number of steps to t_end: dt only shrinks; a count past 2^53 cannot be kept in
+      ! the step counter's double-precision time (t + dt == t), nor run
+      if (.not. (this%dt > 0.0_wp .and. cfg%run%t_end/this%dt <= max_steps)) then
+        stat = 1
+        msg = trim(cfg%input_file)//': &run: t_end = '//rtoa(cfg%run%t_end)//' s needs '// &
+              rtoa(cfg%run%t_end/this%dt)//' steps of dt = '//rtoa(this%dt)//' s (omega_max = '// &
+              rtoa(this%omega_max)//' rad/s): more than 2^53 steps cannot be represented; '// &
+              'shorten t_end or coarsen the grid'
+        return
+      end if
+      this%n_steps = max(1_i8, ceiling(cfg%run%t_end/this%dt*(1.0_wp - 1.0e-12_wp), i8))
+      this%dt = cfg%run%t_end/real(this%n_steps, wp)
+      if (len_trim(cfg%run%restart) > 0) then
+        call check_restart(this, stat, msg)
+        if (stat /= 0) return
+      end if
+    end if
+
+    ! probes
+    np = size(cfg%probes)
+    allocate(this%probe_gid(np), this%probe_local(np))
+    do k = 1, np
+      this%probe_gid(k) = this%grid%nearest_node(cfg%probes(k)%x, cfg%probes(k)%y)
+      this%probe_local(k) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k), 1)
+    end do
+
+    ! spring probes: the cell that holds the point (the last cell on the far edges)
+    this%moduli = spring_moduli(cfg%material%young, cfg%material%poisson, &
+                                cfg%geometry%plane == 'strain')
+    nsp = count(cfg%probes(:)%springs)
+    allocate(this%sp_probe(nsp), this%sp_local(nsp), this%sp_cell(nsp))
+    nsp = 0
+    do k = 1, np
+      if (.not. cfg%probes(k)%springs) cycle
+      nsp = nsp + 1
+      this%sp_probe(nsp) = k
+      ci = min(max(int(cfg%probes(k)%x/this%grid%lx), 0), this%grid%nx - 1)
+      cj = min(max(int(cfg%probes(k)%y/this%grid%ly), 0), this%grid%ny - 1)
+      this%sp_cell(nsp) = int(ci, i8) + int(cj, i8)*this%grid%nx
+      this%sp_local(nsp) = 0
+      do l = 1, this%lat%n_cells
+        if (this%lat%cell_gid(l) == this%sp_cell(nsp) .and. this%lat%cell_counted(l)) &
+          this%sp_local(nsp) = l
+      end do
+    end do
+    allocate(this%h_sp_e(springs_per_cell, nsp, history_chunk))
+    allocate(this%h_sp_s(springs_per_cell, nsp, history_chunk))
+    if (this%model%nonlinear) then
+      allocate(this%cell_degree(this%lat%n_counted()), stat=ierr)
+      call guard%note(ierr, 'the degree of nonlinearity of the cells', 8.0_wp*this%lat%n_cells)
+    end if
+    call guard%agree(comm, label, stat, msg)
+    if (stat /= 0) return
+    allocate(this%h_time(history_chunk), this%h_step(history_chunk))
+    allocate(this%h_energy(n_energy, history_chunk))
+    allocate(this%h_pu(2, np, history_chunk), this%h_pv(2, np, history_chunk))
+    allocate(this%h_load(history_chunk), this%h_res(history_chunk), this%h_iter(history_chunk))
+    allocate(this%sample(4 + 4*np + 2*springs_per_cell*nsp))
+    stat = 0
+    msg = ''
+  end subroutine simulation_setup
+
+  !> Refuse (stat = 1, msg) a run whose estimated memory exceeds what its nodes have (before
+  !> anything problem-sized is allocated); log the estimate. Collective.
+  subroutine check_memory(this, n_state, label, stat, msg)
+    type(simulation_t), intent(in) :: this
+    integer, intent(in) :: n_state
+    character(len=*), intent(in) :: label
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: info
+    type(memory_case_t) :: mc
+    type(memory_need_t) :: need
+    mc%n_nodes = this%grid%n_nodes
+    mc%n_cells = this%grid%n_cells
+    mc%n_ranks = this%n_ranks
+    mc%n_state = n_state
+    mc%integrator = 'rk4'
+    if (this%verlet) mc%integrator = 'verlet'
+    if (this%static) mc%integrator = 'static'
+    mc%nonlinear = this%cfg%material%nonlinear
+    mc%depth = this%cfg%material%history_depth
+    mc%idx_bytes = storage_size(1_metis_idx)/8
+    need = memory_estimate(mc)
+    call memory_check(this%comm, need, label, stat, msg, info)
+    if (stat == 0) call log_info(info)
+  end subroutine check_memory
+
+  !> The initial velocity field of &initial: uniform velocity plus a rigid spin (the filtered
+  !> velocity of capped damping starts equal to it).
+  module subroutine initial_velocity(this)
+    type(simulation_t), intent(inout) :: this
+    integer :: l
+    real(wp) :: xy(2)
+    associate(ini => this%cfg%initial)
+      do l = 1, this%lat%n_owned
+        xy = this%grid%node_xy(this%lat%gid(l)) - ini%center
+        this%st%y(3:4, l) = ini%velocity + ini%angular_velocity*[-xy(2), xy(1)]
+        if (this%model%n_state == 6) this%st%y(5:6, l) = this%st%y(3:4, l)
+      end do
+    end associate
+  end subroutine initial_velocity
+
+end submodule iem_simulation_setup
