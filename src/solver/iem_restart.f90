@@ -7,6 +7,7 @@ submodule (iem_simulation) iem_restart
   use iem_checkpoint, only: checkpoint_write, checkpoint_read_header, checkpoint_verify, &
                             checkpoint_read, word_hash
   use iem_h5_inspect, only: h5_output_inspect
+  use iem_alloc_guard, only: alloc_guard_t
   implicit none
 
 contains
@@ -84,7 +85,8 @@ contains
     real(wp), allocatable :: nodes(:, :), cells(:, :)
     integer(i8), allocatable :: cg(:)
     real(wp) :: sums(2)
-    integer :: l, ns, c, n
+    integer :: l, ns, c, n, ierr
+    type(alloc_guard_t) :: guard
     call flush_history(this, stat)
     if (stat /= 0) then
       msg = 'writing the history before a checkpoint failed'
@@ -119,14 +121,21 @@ contains
     h%last_sample = this%last_sample
     h%last_frame_time = this%last_frame_time
     n = this%lat%n_owned
-    allocate(nodes(2*ns - 2, n))
+    cg = counted_cell_gids(this)
+    ! the buffers of a checkpoint come and go with it: out of memory ends the run cleanly
+    allocate(nodes(2*ns - 2, n), stat=ierr)
+    call guard%note(ierr, "the checkpoint's node buffer", 8.0_wp*(2*ns - 2)*n)
+    if (this%model%nonlinear .and. ierr == 0) then
+      allocate(cells(12*(7 + 2*h%depth), size(cg)), stat=ierr)
+      call guard%note(ierr, "the checkpoint's spring buffer", 96.0_wp*(7 + 2*h%depth)*size(cg))
+    end if
+    call guard%agree(this%comm, trim(this%cfg%run%checkpoint_file), stat, msg)
+    if (stat /= 0) return
     do l = 1, n
       nodes(1:ns, l) = this%st%y(1:ns, l)
       nodes(ns + 1:, l) = this%st%acc(:, l)
     end do
-    cg = counted_cell_gids(this)
     if (this%model%nonlinear) then
-      allocate(cells(12*(7 + 2*h%depth), size(cg)))
       c = 0
       do l = 1, this%lat%n_cells
         if (.not. this%lat%cell_counted(l)) cycle
