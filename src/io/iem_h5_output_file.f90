@@ -22,26 +22,12 @@ submodule (iem_h5_output) iem_h5_output_file
 contains
 
   !> Creates the output file collectively (stat /= 0 if it exists and overwrite is off).
-  module subroutine h5_output_create(this, path, comm, overwrite, version, input_file, input_text, &
-      analysis, n_nodes, n_cells, owned_gids, probe_names, probe_xy, probe_node, probe_node_xy, &
-      stat, msg)
+  module procedure h5_output_create
     ! Writes the header attributes, creates the groups and the empty history datasets (with
     ! /history/static when analysis is 'static'), and builds this rank's node selection.
     ! owned_gids: this rank's nodes, 0-based, strictly ascending, a partition of
     ! 0..n_nodes-1 over the ranks. The strings and probe arguments
     ! must be the same on every rank. comm is kept (not duplicated) while the file is open.
-    class(h5_output_t), intent(inout) :: this
-    character(len=*), intent(in) :: path, version, input_file, input_text, analysis
-    type(MPI_Comm), intent(in) :: comm
-    logical, intent(in) :: overwrite
-    integer(i8), intent(in) :: n_nodes, n_cells
-    integer(i8), intent(in) :: owned_gids(:)
-    character(len=*), intent(in) :: probe_names(:)
-    real(wp), intent(in) :: probe_xy(:, :)
-    integer(i8), intent(in) :: probe_node(:)
-    real(wp), intent(in) :: probe_node_xy(:, :)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
     character(len=:), allocatable :: local_msg, pname, tmp_msg
     integer(HID_T) :: fapl, hist_id, energy_gid, probes_gid, pgid, static_gid
     integer :: ierr, bad, any_bad, p, k, tmp_stat
@@ -245,16 +231,12 @@ contains
       return
     end if
     call write_sidecar(this, stat, msg)
-  end subroutine h5_output_create
+  end procedure h5_output_create
 
   !> Closes the file collectively, after setting complete = 1 as the last write if `complete`.
-  module subroutine h5_output_close(this, complete, stat, msg)
+  module procedure h5_output_close
     ! Rank 0 then rewrites the sidecar. Does nothing if the file is not open (never created,
     ! failed create, closed already).
-    class(h5_output_t), intent(inout) :: this
-    logical, intent(in) :: complete
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
     integer(HID_T) :: attr
     integer :: ierr, one_value
 
@@ -284,16 +266,10 @@ contains
     this%file_id = -1
     this%is_open = .false.
     call write_sidecar(this, stat, msg)
-  end subroutine h5_output_close
+  end procedure h5_output_close
 
-  !> Opens the HDF5 library if needed, sets the memory types, and makes the file access list
-  !> for parallel I/O on comm with collective metadata (the caller closes fapl).
-  module subroutine file_access_list(this, comm, fapl, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    type(MPI_Comm), intent(in) :: comm
-    integer(HID_T), intent(inout) :: fapl
-    integer, intent(inout) :: stat
-    character(len=:), allocatable, intent(inout) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure file_access_list
     integer :: ierr
     if (.not. library_open) then
       call h5open_f(ierr)
@@ -316,14 +292,10 @@ contains
     call h5pset_coll_metadata_write_f(fapl, .true., ierr)
     if (failed(this%path, ierr, 'h5pset_coll_metadata_write_f', 'file access list', stat, msg)) &
       return
-  end subroutine file_access_list
+  end procedure file_access_list
 
-  !> The collective transfer list and the dataset creation list (no fill values: every
-  !> element of every dataset is written) of an open file.
-  module subroutine dataset_lists(this, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    integer, intent(inout) :: stat
-    character(len=:), allocatable, intent(inout) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure dataset_lists
     integer :: ierr
     call h5pcreate_f(H5P_DATASET_XFER_F, this%xfer_id, ierr)
     if (failed(this%path, ierr, 'h5pcreate_f', 'transfer list', stat, msg)) return
@@ -333,14 +305,10 @@ contains
     if (failed(this%path, ierr, 'h5pcreate_f', 'dataset creation list', stat, msg)) return
     call h5pset_fill_time_f(this%dcpl_id, H5D_FILL_TIME_NEVER_F, ierr)
     if (failed(this%path, ierr, 'h5pset_fill_time_f', 'dataset creation list', stat, msg)) return
-  end subroutine dataset_lists
+  end procedure dataset_lists
 
-  !> Rank 0 rewrites the sidecar with the frames written so far; collective, so that every
-  !> rank learns of a failure (then stat = h5_output_sidecar_error unless already set).
-  module subroutine write_sidecar(this, stat, msg)
-    class(h5_output_t), intent(in) :: this
-    integer, intent(inout) :: stat
-    character(len=:), allocatable, intent(inout) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure write_sidecar
     character(len=:), allocatable :: xmsg
     integer :: xstat
 
@@ -357,7 +325,7 @@ contains
     else
       msg = 'iem_h5_output: rank 0 could not write the sidecar '//this%xmf_path
     end if
-  end subroutine write_sidecar
+  end procedure write_sidecar
 
   !> Closes every open object of the file except the file itself; keeps the first error.
   subroutine release_objects(this, stat, msg)
@@ -418,10 +386,7 @@ contains
   end subroutine release_objects
 
   !> Closes every open object and the file, after a failure; keeps the first error.
-  module subroutine release(this, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    integer, intent(inout) :: stat
-    character(len=:), allocatable, intent(inout) :: msg
+  module procedure release
     integer :: ierr
 
     call release_objects(this, stat, msg)
@@ -431,7 +396,7 @@ contains
       if (failed(this%path, ierr, 'h5fclose_f', '/', stat, msg)) continue
     end if
     this%is_open = .false.
-  end subroutine release
+  end procedure release
 
   !> Empty if the arguments of create are consistent on this rank, else what is wrong.
   function check_create_args(n_nodes, n_cells, owned_gids, probe_names, probe_xy, probe_node, &

@@ -13,13 +13,8 @@ submodule (iem_h5_output) iem_h5_output_frames
 contains
 
   !> Adds the next frame group (u, v of the owned nodes) and appends to /frames/time, step.
-  module subroutine h5_output_write_frame(this, step, time, u, v, stat, msg)
+  module procedure h5_output_write_frame
     ! u, v: (2, n_owned) in owned_gids order. Collective; rank 0 then rewrites the sidecar.
-    class(h5_output_t), intent(inout) :: this
-    integer(i8), intent(in) :: step
-    real(wp), intent(in) :: time, u(:, :), v(:, :)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
     character(len=:), allocatable :: name, where
     real(wp), allocatable :: grown(:)
     integer(HID_T) :: gid, fspace, mspace
@@ -97,7 +92,7 @@ contains
       msg = 'iem_h5_output: write_frame: u and v must be (2, '//itoa(this%n_owned)// &
         '), the owned nodes of this rank; nothing written from it to '//where//' in '//this%path
     end if
-  end subroutine h5_output_write_frame
+  end procedure h5_output_write_frame
 
   !> Creates the node dataset `name` (2, n_nodes) in group `gid` and writes this rank's nodes
   !> from field(2, n_owned); if not shapes_ok, writes nothing but takes part. No-op if stat /= 0.
@@ -144,14 +139,8 @@ contains
     call close_space(this%path, mspace, stat, msg)
   end subroutine write_node_field
 
-  !> Writes a cell field, values(n) for this rank's cells in the order given to write_mesh,
-  !> as /frames/<last frame>/<name> (n_cells values); collective, after write_frame.
-  module subroutine h5_output_write_cell_field(this, name, values, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    character(len=*), intent(in) :: name
-    real(wp), intent(in) :: values(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure h5_output_write_cell_field
     character(len=:), allocatable :: where, frame
     integer(HID_T) :: gid, did, fspace, mspace
     integer :: ierr
@@ -187,6 +176,6 @@ contains
     if (gid >= 0) call h5gclose_f(gid, ierr)
     call close_space(this%path, fspace, stat, msg)
     call close_space(this%path, mspace, stat, msg)
-  end subroutine h5_output_write_cell_field
+  end procedure h5_output_write_cell_field
 
 end submodule iem_h5_output_frames

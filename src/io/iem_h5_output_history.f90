@@ -10,22 +10,12 @@ submodule (iem_h5_output) iem_h5_output_history
 contains
 
   !> Appends n samples to /history collectively; every rank passes the same data.
-  module subroutine h5_output_write_history(this, n, time, step, energies, probe_u, probe_v, &
-      stat, msg, &
-      load_factor, iterations, residual)
+  module procedure h5_output_write_history
     ! time(n), step(n), energies(5, n) (kinetic, strain, external_work, damping,
     ! balance_error), probe_u and probe_v (2, n_probes, n). A static run's file (analysis =
     ! 'static') also takes load_factor(n), iterations(n), residual(n) for /history/static,
     ! and only it. Rank 0 selects the data, the others select nothing, all take part in the
     ! extend and the write.
-    class(h5_output_t), intent(inout) :: this
-    integer, intent(in) :: n
-    real(wp), intent(in) :: time(:), energies(:, :), probe_u(:, :, :), probe_v(:, :, :)
-    integer(i8), intent(in) :: step(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    real(wp), intent(in), optional :: load_factor(:), residual(:)
-    integer(i8), intent(in), optional :: iterations(:)
     real(wp), allocatable :: buf1(:), buf2(:, :)
     integer(HID_T) :: fspace, mspace
     integer(HSIZE_T) :: dims1(1), dims2(2)
@@ -163,18 +153,10 @@ contains
     call close_space(this%path, fspace, stat, msg)
     call close_space(this%path, mspace, stat, msg)
     if (stat == 0) this%n_samples = this%n_samples + nn
-  end subroutine h5_output_write_history
+  end procedure h5_output_write_history
 
-  !> Writes the settings of a static run as attributes of /history/static; collective, the
-  !> same values on every rank.
-  module subroutine h5_output_write_static_settings(this, load_steps, tolerance, max_iterations, &
-      method, mass, check_interval, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    integer, intent(in) :: load_steps, max_iterations, check_interval
-    real(wp), intent(in) :: tolerance
-    character(len=*), intent(in) :: method, mass
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure h5_output_write_static_settings
     integer(HID_T) :: gid
     integer :: ierr
     character(len=*), parameter :: where = '/history/static'
@@ -196,19 +178,10 @@ contains
     call put_attr(this%path, gid, where, 'check_interval', stat, msg, ival=check_interval)
     call h5gclose_f(gid, ierr)
     if (failed(this%path, ierr, 'h5gclose_f', where, stat, msg)) return
-  end subroutine h5_output_write_static_settings
+  end procedure h5_output_write_static_settings
 
-  !> Creates /history/springs/<name>/strain and /stress, (12, samples) each, for spring probes
-  !> (the 12 springs of one cell: edges 1-4, Poisson springs 1-4, shear springs 1-4), with the
-  !> cell's global index and the probe point as attributes; collective, same arguments on
-  !> every rank, after create and before the first write_spring_history.
-  module subroutine h5_output_define_spring_probes(this, names, cell_gids, xy, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    character(len=*), intent(in) :: names(:)
-    integer(i8), intent(in) :: cell_gids(:)
-    real(wp), intent(in) :: xy(:, :)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure h5_output_define_spring_probes
     integer(HID_T) :: gid, pgid
     integer :: ierr, p
     character(len=:), allocatable :: where
@@ -260,16 +233,10 @@ contains
     end block work
     if (pgid >= 0) call h5gclose_f(pgid, ierr)
     if (gid >= 0) call h5gclose_f(gid, ierr)
-  end subroutine h5_output_define_spring_probes
+  end procedure h5_output_define_spring_probes
 
-  !> Appends n samples of the spring probes: strain and stress (12, n_spring_probes, n),
-  !> the same on every rank (rank 0 writes); collective.
-  module subroutine h5_output_write_spring_history(this, n, strain, stress, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    integer, intent(in) :: n
-    real(wp), intent(in) :: strain(:, :, :), stress(:, :, :)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure h5_output_write_spring_history
     integer :: p
 
     stat = 0
@@ -288,7 +255,7 @@ contains
         this%n_spring_samples, stress(:, p, :n), stat, msg)
     end do
     if (stat == 0) this%n_spring_samples = this%n_spring_samples + n
-  end subroutine h5_output_write_spring_history
+  end procedure h5_output_write_spring_history
 
   !> Appends the samples data(ncomp, n) to the extendible series dset after its first `old`
   !> samples (rank 0 writes; collective). Does nothing once stat /= 0.

@@ -12,18 +12,10 @@ submodule (iem_h5_output) iem_h5_output_mesh
 contains
 
   !> Writes /mesh and its attributes collectively, each rank its owned nodes and its cells.
-  module subroutine h5_output_write_mesh(this, coords, mass, cells, cell_gids, nx, ny, lx, ly, &
-      thickness, plane, stat, msg)
+  module procedure h5_output_write_mesh
     ! coords(2, n_owned), mass(n_owned) in owned_gids order; cells(4, n): 0-based global corner
     ! ids of the cells at the 0-based global, strictly ascending indices cell_gids(n); every
     ! cell is written by exactly one rank.
-    class(h5_output_t), intent(inout) :: this
-    real(wp), intent(in) :: coords(:, :), mass(:), lx, ly, thickness
-    integer(i8), intent(in) :: cells(:, :), cell_gids(:)
-    integer, intent(in) :: nx, ny
-    character(len=*), intent(in) :: plane
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
     character(len=:), allocatable :: local_msg, tmp_msg
     integer(i8), allocatable :: cstart(:), clen(:)
     integer(HID_T) :: gid, did, cell_fspace, cell_mspace, mass_fspace, mass_mspace
@@ -140,7 +132,7 @@ contains
       msg = tmp_msg
     end if
     call write_sidecar(this, stat, msg)
-  end subroutine h5_output_write_mesh
+  end procedure h5_output_write_mesh
 
   !> Empty if the arguments of write_mesh are consistent on this rank, else what is wrong.
   function check_mesh_args(this, coords, mass, cells, cell_gids) result(err)

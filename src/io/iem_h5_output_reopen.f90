@@ -15,22 +15,8 @@ submodule (iem_h5_output) iem_h5_output_reopen
 
 contains
 
-  !> Reopens the output of an interrupted dynamic run to append to it: keeps its first
-  !> n_samples history samples and n_frames frames (later ones, written after the checkpoint
-  !> the run continues from, are removed, so the history has no gap and no duplicate), marks
-  !> it incomplete, and prepares this rank's node and cell selections as create and
-  !> write_mesh do. Collective; the arguments as for create (probe and spring probe names
-  !> must match the file).
-  module subroutine h5_output_reopen(this, path, comm, n_nodes, n_cells, owned_gids, cell_gids, &
-      probe_names, spring_names, n_samples, n_frames, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    character(len=*), intent(in) :: path
-    type(MPI_Comm), intent(in) :: comm
-    integer(i8), intent(in) :: n_nodes, n_cells, n_samples, n_frames
-    integer(i8), intent(in) :: owned_gids(:), cell_gids(:)
-    character(len=*), intent(in) :: probe_names(:), spring_names(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure h5_output_reopen
     integer(HID_T) :: fapl, attr
     integer :: ierr, k, p, zero
     integer(i8) :: have
@@ -189,19 +175,10 @@ contains
       end if
       if (failed(this%path, e, 'h5dset_extent_f', where, stat, msg)) return
     end subroutine open_series
-  end subroutine h5_output_reopen
+  end procedure h5_output_reopen
 
-  !> Adds /continuations/NNNN (1, 2, ...: one per continuation) with the attributes checkpoint
-  !> (its path as given), time and step (where the run continued), n_ranks, date (the wall
-  !> clock at the continuation, ISO 8601, of rank 0), samples and frames (what the file kept
-  !> of the run before). Collective.
-  module subroutine h5_output_record_continuation(this, checkpoint, time, step, stat, msg)
-    class(h5_output_t), intent(inout) :: this
-    character(len=*), intent(in) :: checkpoint
-    real(wp), intent(in) :: time
-    integer(i8), intent(in) :: step
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure h5_output_record_continuation
     integer(HID_T) :: grp, sub
     integer :: ierr, storage, max_corder, n_links, v(8)
     logical :: exists
@@ -256,6 +233,6 @@ contains
     if (stat /= 0) return
     call h5fflush_f(this%file_id, H5F_SCOPE_GLOBAL_F, ierr)
     if (failed(this%path, ierr, 'h5fflush_f', '/', stat, msg)) return
-  end subroutine h5_output_record_continuation
+  end procedure h5_output_record_continuation
 
 end submodule iem_h5_output_reopen

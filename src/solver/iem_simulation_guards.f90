@@ -8,14 +8,8 @@ submodule (iem_simulation) iem_simulation_guards
 
 contains
 
-  !> Guard at step k: every owned value finite (else stop with the last good frame); keep the
-  !> state as the last good one; the energy balance against the thresholds. Collective.
-  module subroutine check_state(this, k, t, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure check_state
     integer :: n
     logical :: finite
     stat = 0
@@ -31,18 +25,10 @@ contains
     this%snap = this%st%y(1:4, 1:n)
     this%snap_step = k
     this%snap_time = t
-  end subroutine check_state
+  end procedure check_state
 
-  !> Stop on non-finite values in the state bad(:, owned nodes) of step k: name the first node
-  !> (lowest global index) holding one, its rank and position, and write the last good state
-  !> good(4, n_owned) of step k_good as a frame. Collective.
-  module subroutine stop_nonfinite(this, k, t, bad, good, k_good, t_good, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer(i8), intent(in) :: k, k_good
-    real(wp), intent(in) :: t, t_good
-    real(wp), intent(in) :: bad(:, :), good(:, :)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure stop_nonfinite
     integer(i8) :: first, mine
     integer :: l, owner, stat2
     real(wp) :: xy(2), big(2)
@@ -80,17 +66,10 @@ contains
           ', y = '//rtoa(xy(2))//' m, speed '//rtoa(big(1))//' m/s)'
     call flush_history(this, stat2)
     call this%out%write_frame(k_good, t_good, good(1:2, :), good(3:4, :), stat2, msg2)
-  end subroutine stop_nonfinite
+  end procedure stop_nonfinite
 
-  !> Energy guard after a history sample: warn once above energy_warn, stop above
-  !> energy_stop, naming the node with the largest speed (where a divergence grows fastest)
-  !> and writing the current state as the last frame. Collective.
-  module subroutine energy_guard(this, k, t, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure energy_guard
     real(wp) :: err, fast(2), xy(2)
     integer :: l, stat2
     logical :: warn, halt
@@ -126,6 +105,6 @@ contains
     call log_warn('energy-balance error '//rtoa(err)//' > energy_warn = '// &
                   rtoa(this%cfg%run%energy_warn)//' at step '//itoa(k)//', t = '//rtoa(t)// &
                   ' s; '//where//' (warned once; the run goes on)')
-  end subroutine energy_guard
+  end procedure energy_guard
 
 end submodule iem_simulation_guards

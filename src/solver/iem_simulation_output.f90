@@ -13,21 +13,16 @@ submodule (iem_simulation) iem_simulation_output
 contains
 
   !> Create the output file, or reopen that of the interrupted run when continuing one.
-  module subroutine open_output(this, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  module procedure open_output
     if (this%restart%step > 0) then
       call reopen_output(this, stat, msg)
     else
       call create_output(this, stat, msg)
     end if
-  end subroutine open_output
+  end procedure open_output
 
   !> Global indices of this rank's counted cells, ascending.
-  module function counted_cell_gids(this) result(g)
-    type(simulation_t), intent(in) :: this
-    integer(i8), allocatable :: g(:)
+  module procedure counted_cell_gids
     integer :: l, k
     allocate(g(this%lat%n_counted()))
     k = 0
@@ -36,7 +31,7 @@ contains
       k = k + 1
       g(k) = this%lat%cell_gid(l)
     end do
-  end function counted_cell_gids
+  end procedure counted_cell_gids
 
   !> Create the output file and write the mesh, the spring probes and the static settings.
   subroutine create_output(this, stat, msg)
@@ -102,11 +97,7 @@ contains
   end subroutine create_output
 
   !> Gather one history sample (global sums with one Allreduce) into the buffer.
-  module subroutine record_sample(this, k, t, diverged)
-    type(simulation_t), intent(inout) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t
-    logical, intent(out) :: diverged
+  module procedure record_sample
     integer :: p, np, b, stat, o
     real(wp) :: ke, se, e, scale
 
@@ -162,7 +153,7 @@ contains
       this%h_sp_s(:, p, b) = this%sample(o + springs_per_cell + 1:o + 2*springs_per_cell)
       o = o + 2*springs_per_cell
     end do
-  end subroutine record_sample
+  end procedure record_sample
 
   !> Degree of nonlinearity of each counted cell at the committed state: the smallest secant
   !> over initial stiffness of its 12 springs (1: elastic; towards 0: far into the nonlinear
@@ -210,9 +201,7 @@ contains
   end subroutine spring_sample
 
   !> Write the buffered history samples to the file.
-  module subroutine flush_history(this, stat)
-    type(simulation_t), intent(inout) :: this
-    integer, intent(out) :: stat
+  module procedure flush_history
     character(len=:), allocatable :: msg
     integer :: n
     stat = 0
@@ -229,14 +218,10 @@ contains
     if (stat == 0 .and. size(this%sp_probe) > 0) call this%out%write_spring_history(n, &
       this%h_sp_e(:, :, 1:n), this%h_sp_s(:, :, 1:n), stat, msg)
     this%n_buf = 0
-  end subroutine flush_history
+  end procedure flush_history
 
   !> Write a frame of the state at step k (and the cells' degree of nonlinearity).
-  module subroutine write_frame(this, k, t, stat)
-    type(simulation_t), intent(inout) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t
-    integer, intent(out) :: stat
+  module procedure write_frame
     character(len=:), allocatable :: msg
     integer :: n
     n = this%lat%n_owned
@@ -246,6 +231,6 @@ contains
     if (stat /= 0 .or. .not. this%model%nonlinear) return
     call nonlinearity_degree(this)
     call this%out%write_cell_field('nonlinearity', this%cell_degree, stat, msg)
-  end subroutine write_frame
+  end procedure write_frame
 
 end submodule iem_simulation_output

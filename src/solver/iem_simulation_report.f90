@@ -11,8 +11,7 @@ submodule (iem_simulation) iem_simulation_report
 contains
 
   !> Log the size of the run, its time step and its damping (rank 0).
-  module subroutine report_start(this)
-    type(simulation_t), intent(in) :: this
+  module procedure report_start
     call log_info('iem '//iem_version//': '//itoa(this%grid%n_nodes)//' nodes, '// &
       itoa(this%grid%n_cells)//' cells ('//itoa(this%grid%nx)//' x '//itoa(this%grid%ny)// &
       '), '//itoa(this%n_ranks)//' ranks')
@@ -29,12 +28,10 @@ contains
       call log_info('damped stable step '//rtoa(this%dt_limit)//' s = '// &
         rtoa(this%dt_limit/undamped_limit(this))//' of the undamped one')
     end if
-  end subroutine report_start
+  end procedure report_start
 
   !> Rank 0 reports throughput, where the time went (largest over ranks) and peak memory.
-  module subroutine report_performance(this, wall)
-    type(simulation_t), intent(in) :: this
-    real(wp), intent(in) :: wall
+  module procedure report_performance
     real(wp) :: t(n_timers), mem(2), work
     character(len=300) :: line
     character(len=8) :: pct
@@ -61,14 +58,10 @@ contains
     write(line, '(a,f0.1,a,f0.1,a)') 'memory: peak ', max(mem(1), 0.1_wp), &
       ' MB per rank (largest), ', max(mem(2), 0.1_wp), ' MB in all'
     call log_info(trim(line))
-  end subroutine report_performance
+  end procedure report_performance
 
   !> Rank 0: print a progress line at every 10% of the run and every progress_interval s.
-  module subroutine progress(this, k, t, wall0, wall_last, next_report)
-    type(simulation_t), intent(in) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t
-    real(wp), intent(inout) :: wall0, wall_last, next_report
+  module procedure progress
     real(wp) :: now, frac, eta
     character(len=200) :: line
     now = MPI_Wtime()
@@ -85,15 +78,13 @@ contains
       this%n_steps, '  t ', t, ' s  dt ', this%dt, ' s  wall ', now - wall0, ' s  eta ', eta, &
       ' s  energy error ', this%last_balance
     call log_info(trim(line))
-  end subroutine progress
+  end procedure progress
 
   !> 'RK4' or 'velocity Verlet': the integrator of a dynamic run, for messages.
-  module function integrator_name(this) result(name)
-    type(simulation_t), intent(in) :: this
-    character(len=:), allocatable :: name
+  module procedure integrator_name
     name = 'RK4'
     if (this%verlet) name = 'velocity Verlet'
-  end function integrator_name
+  end procedure integrator_name
 
   !> The integrator's stable step without damping.
   real(wp) function undamped_limit(this) result(dt)

@@ -21,14 +21,8 @@ submodule (iem_simulation) iem_simulation_setup
 
 contains
 
-  !> Build everything for the run; collective; stat /= 0 with msg on every rank on an error
-  !> found before any output is written.
-  module subroutine simulation_setup(this, cfg, comm, stat, msg)
-    class(simulation_t), intent(inout) :: this
-    type(config_t), intent(in) :: cfg
-    type(MPI_Comm), intent(in) :: comm
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure simulation_setup
     integer(i8), allocatable :: n_selected(:)
     integer :: k, np, nb, n_state, nsp, ci, cj, l, ierr
     integer(i8) :: most(1)
@@ -198,7 +192,7 @@ contains
     allocate(this%sample(4 + 4*np + 2*springs_per_cell*nsp))
     stat = 0
     msg = ''
-  end subroutine simulation_setup
+  end procedure simulation_setup
 
   !> Refuse (stat = 1, msg) a run whose estimated memory exceeds what its nodes have (before
   !> anything problem-sized is allocated); log the estimate. Collective.
@@ -226,10 +220,8 @@ contains
     if (stat == 0) call log_info(info)
   end subroutine check_memory
 
-  !> The initial velocity field of &initial: uniform velocity plus a rigid spin (the filtered
-  !> velocity of capped damping starts equal to it).
-  module subroutine initial_velocity(this)
-    type(simulation_t), intent(inout) :: this
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure initial_velocity
     integer :: l
     real(wp) :: xy(2)
     associate(ini => this%cfg%initial)
@@ -239,6 +231,6 @@ contains
         if (this%model%n_state == 6) this%st%y(5:6, l) = this%st%y(3:4, l)
       end do
     end associate
-  end subroutine initial_velocity
+  end procedure initial_velocity
 
 end submodule iem_simulation_setup

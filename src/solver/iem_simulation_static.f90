@@ -7,13 +7,8 @@ submodule (iem_simulation) iem_simulation_static
 
 contains
 
-  !> The load steps of a static run: relax to equilibrium at each pseudo-time t_k = k t_end/N
-  !> (k = 0: the equilibrium at t = 0, usually the unloaded state), then record one history
-  !> sample and one frame; stat /= 0 when a step does not converge or diverges.
-  module subroutine run_static(this, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure run_static
     type(relax_result_t) :: res
     integer(i8) :: k, total_iterations
     integer :: b, stat2
@@ -86,6 +81,6 @@ contains
     call log_info('done: '//itoa(this%n_steps)//' load steps, '//itoa(total_iterations)// &
                   ' iterations in '//rtoa(MPI_Wtime() - wall0)//' s wall; energy-balance '// &
                   'error '//rtoa(this%last_balance))
-  end subroutine run_static
+  end procedure run_static
 
 end submodule iem_simulation_static
