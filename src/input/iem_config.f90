@@ -6,6 +6,7 @@ module iem_config
   public :: config_t, run_config_t, geometry_config_t, material_config_t
   public :: node_set_spec_t, time_function_spec_t, bc_config_t, load_config_t
   public :: damping_config_t, probe_config_t, static_config_t, initial_config_t
+  public :: shape_config_t
   public :: name_len, path_len
 
   integer, parameter :: name_len = 64, path_len = 1024
@@ -36,7 +37,9 @@ module iem_config
     logical :: overwrite = .false.
   end type run_config_t
 
-  !> Rectangle and its grid (&geometry).
+  !> The background grid of rectangular cells and what fills it (&geometry): the rectangle
+  !> [0, length] x [0, height] cut into nx x ny cells, filled with the background material,
+  !> then an optional cell map from an image, then the &shape groups in order (docs/model.md).
   type :: geometry_config_t
     real(wp) :: length = 0.0_wp, height = 0.0_wp, thickness = 1.0_wp
     integer :: nx = 0, ny = 0
@@ -44,10 +47,39 @@ module iem_config
     character(len=8) :: plane = 'stress'
     !> Cell law: 'paper' (the paper's 12 springs) or 'bending' (bending-corrected cell).
     character(len=8) :: cell = 'paper'
+    !> What fills the grid before the image and the shapes: a material name or 'void'
+    !> ('': the first material); resolved to background_id (0: void, k: materials(k)).
+    character(len=name_len) :: background = ''
+    integer :: background_id = 1
+    !> Cell map: a PBM/PGM image (one pixel a cell, row 1 at the top), its grey levels and the
+    !> material ('void' or a name) each level gives; resolved to image_material_ids.
+    character(len=path_len) :: image = ''
+    integer, allocatable :: image_levels(:)
+    character(len=name_len), allocatable :: image_materials(:)
+    integer, allocatable :: image_material_ids(:)
+    !> A body in several pieces: 'warn' (log a warning), 'allow' (log it) or 'one' (refuse).
+    character(len=8) :: pieces = 'warn'
   end type geometry_config_t
 
-  !> Linear elastic material (&material).
+  !> One shape (&shape, repeatable; later shapes win): a rectangle box = x0, x1, y0, y1, a
+  !> circle (center, radius) or a polygon (points(2, n), n >= 3), giving its material to the
+  !> cells whose centre it holds (material = 'void': removing them); material_id resolved
+  !> (0: void, k: materials(k)).
+  type :: shape_config_t
+    character(len=name_len) :: name = ''
+    character(len=12) :: kind = ''
+    real(wp) :: box(4) = 0.0_wp
+    real(wp) :: center(2) = 0.0_wp, radius = 0.0_wp
+    real(wp), allocatable :: points(:, :)
+    character(len=name_len) :: material = ''
+    integer :: material_id = 0
+  end type shape_config_t
+
+  !> One material (&material, repeatable with distinct names): linear elastic, optionally
+  !> with nonlinear springs.
   type :: material_config_t
+    !> Name that shapes and the image refer to ('' allowed when there is one material).
+    character(len=name_len) :: name = ''
     real(wp) :: young = 0.0_wp, poisson = 0.0_wp, density = 0.0_wp
     !> Nonlinear (hyperbolic, Masing) springs, with the continuum strengths (Pa) that set
     !> each spring kind's reference strain (docs/nonlinear.md), and the reversal points kept
@@ -58,11 +90,21 @@ module iem_config
     integer :: history_depth = 8
   end type material_config_t
 
-  !> A set of nodes: a named edge, a box, a point (nearest node) or all nodes.
+  !> A set of nodes of the body (docs/input.md, Node sets): where = 'left', 'right', 'bottom',
+  !> 'top' (nodes on that side of the grid), 'all', 'box' (box = x0, x1, y0, y1), 'point'
+  !> (the node nearest to point), 'segment' (nodes on the segment = x0, y0, x1, y1),
+  !> 'circle' (nodes in the disc center, radius), 'boundary' (nodes on the body's
+  !> boundary), 'shape' (boundary nodes on the outline of the named shape; shape_id
+  !> resolved), 'face' (boundary nodes of the edges whose outward normal is normal).
   type :: node_set_spec_t
     character(len=8) :: where = ''
     real(wp) :: box(4) = 0.0_wp
     real(wp) :: point(2) = 0.0_wp
+    real(wp) :: segment(4) = 0.0_wp
+    real(wp) :: center(2) = 0.0_wp, radius = 0.0_wp
+    character(len=name_len) :: shape = ''
+    integer :: shape_id = 0
+    real(wp) :: normal(2) = 0.0_wp
   end type node_set_spec_t
 
   !> Time function of a load or prescribed velocity: constant, step or linear ramp.
@@ -140,7 +182,9 @@ module iem_config
     character(len=:), allocatable :: input_text
     type(run_config_t) :: run
     type(geometry_config_t) :: geometry
-    type(material_config_t) :: material
+    !> Materials (at least one); the first is the default background.
+    type(material_config_t), allocatable :: materials(:)
+    type(shape_config_t), allocatable :: shapes(:)
     type(damping_config_t) :: damping
     type(static_config_t) :: static
     type(initial_config_t) :: initial

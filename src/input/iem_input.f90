@@ -67,6 +67,7 @@ contains
       end if
     end do
     allocate(cfg%bcs(count(5)), cfg%loads(count(6)), cfg%probes(count(7)))
+    allocate(cfg%materials(1), cfg%shapes(0))
 
     ib = 0; il = 0; ip = 0
     do g = 1, text%n_groups
@@ -146,7 +147,7 @@ contains
                "analysis = 'dynamic'", stat, msg)
       return
     end if
-    if (cfg%material%nonlinear .and. cfg%geometry%cell /= 'paper') then
+    if (cfg%materials(1)%nonlinear .and. cfg%geometry%cell /= 'paper') then
       call bad('&geometry', 'cell', "'"//trim(cfg%geometry%cell)//"'", "cannot be used with "// &
                "nonlinear springs (&material nonlinear = .true.): use cell = 'paper'", stat, msg)
       return

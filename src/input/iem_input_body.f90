@@ -134,17 +134,17 @@ contains
     namelist /material/ e, nu, density, nonlinear, tensile_strength, compressive_strength, &
       shear_strength, history_depth
     e = unset_real; nu = unset_real; density = unset_real
-    nonlinear = cfg%material%nonlinear; history_depth = cfg%material%history_depth
+    nonlinear = cfg%materials(1)%nonlinear; history_depth = cfg%materials(1)%history_depth
     tensile_strength = unset_real; compressive_strength = unset_real
     shear_strength = unset_real
     m = ''
     read(chunk, nml=material, iostat=ios, iomsg=m)
     iomsg = trim(m)
-    cfg%material%young = e; cfg%material%poisson = nu; cfg%material%density = density
-    cfg%material%nonlinear = nonlinear; cfg%material%history_depth = history_depth
-    cfg%material%tensile_strength = tensile_strength
-    cfg%material%compressive_strength = compressive_strength
-    cfg%material%shear_strength = shear_strength
+    cfg%materials(1)%young = e; cfg%materials(1)%poisson = nu; cfg%materials(1)%density = density
+    cfg%materials(1)%nonlinear = nonlinear; cfg%materials(1)%history_depth = history_depth
+    cfg%materials(1)%tensile_strength = tensile_strength
+    cfg%materials(1)%compressive_strength = compressive_strength
+    cfg%materials(1)%shear_strength = shear_strength
   end subroutine parse_material
 
   !> Check, parse and validate group g (&material) of the input into the configuration.
@@ -168,14 +168,14 @@ contains
       stat = 1
       return
     end if
-    associate(m => cfg%material)
+    associate(m => cfg%materials(1))
       call check_reals(text, g, label, [character(len=20) :: 'e', 'nu', 'density', &
         'tensile_strength', 'compressive_strength', 'shear_strength'], [m%young, m%poisson, &
         m%density, m%tensile_strength, m%compressive_strength, m%shear_strength], stat, msg)
     end associate
     if (stat == 0) call check_logicals(text, g, label, ['nonlinear'], stat, msg)
     if (stat /= 0) return
-    associate(m => cfg%material)
+    associate(m => cfg%materials(1))
       if (m%young == unset_real) then
         call bad(label, 'E', '(not given)', "is required: Young's modulus [Pa]", stat, msg)
       else if (.not. (m%young > 0.0_wp)) then

@@ -81,8 +81,8 @@ contains
     type(alloc_guard_t) :: g
 
     this%grid = grid
-    this%density = cfg%material%density
-    this%k = cell_constants(cfg%material%young, cfg%material%poisson, &
+    this%density = cfg%materials(1)%density
+    this%k = cell_constants(cfg%materials(1)%young, cfg%materials(1)%poisson, &
                             cfg%geometry%plane == 'strain', grid%lx, grid%ly, grid%thickness, &
                             bending=cfg%geometry%cell == 'bending')
     this%alpha = cfg%damping%alpha
@@ -94,9 +94,9 @@ contains
       this%beta = capped_beta(cfg%damping%ratio, 2.0_wp*pi*cfg%damping%frequency, this%omega_cap)
       this%n_state = 6
     end if
-    this%nonlinear = cfg%material%nonlinear
+    this%nonlinear = cfg%materials(1)%nonlinear
     if (this%nonlinear) then
-      associate(mat => cfg%material)
+      associate(mat => cfg%materials(1))
         call reference_strains(mat%young, mat%poisson, cfg%geometry%plane == 'strain', &
                                mat%tensile_strength, mat%compressive_strength, &
                                mat%shear_strength, er_pos, er_neg)

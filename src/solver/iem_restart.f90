@@ -97,7 +97,7 @@ contains
     h%ny = this%grid%ny
     h%n_state = ns
     h%nonlinear = merge(1_i8, 0_i8, this%model%nonlinear)
-    h%depth = this%cfg%material%history_depth
+    h%depth = this%cfg%materials(1)%history_depth
     if (this%model%nonlinear) h%depth = this%model%nl%state%depth
     h%verlet = merge(1_i8, 0_i8, this%verlet)
     h%step = k
@@ -275,13 +275,17 @@ contains
             trim(c%run%integrator)
       write(b, '(2i12)') this%grid%nx, this%grid%ny
       sig = sig//b
-      call add([c%geometry%length, c%geometry%height, c%geometry%thickness, c%material%young, &
-                c%material%poisson, c%material%density, c%material%tensile_strength, &
-                c%material%compressive_strength, c%material%shear_strength, this%model%alpha, &
-                this%model%beta, this%model%omega_cap, c%initial%velocity, &
+      call add([c%geometry%length, c%geometry%height, c%geometry%thickness])
+      do k = 1, size(c%materials)
+        associate(m => c%materials(k))
+          call add([m%young, m%poisson, m%density, m%tensile_strength, &
+                    m%compressive_strength, m%shear_strength])
+          write(b, '(l1, i6)') m%nonlinear, m%history_depth
+          sig = sig//trim(m%name)//b
+        end associate
+      end do
+      call add([this%model%alpha, this%model%beta, this%model%omega_cap, c%initial%velocity, &
                 c%initial%angular_velocity, c%initial%center, this%dt])
-      write(b, '(l1, i6)') c%material%nonlinear, c%material%history_depth
-      sig = sig//b
       do k = 1, size(c%bcs)
         sig = sig//trim(c%bcs(k)%set%where)//trim(c%bcs(k)%kind)//trim(c%bcs(k)%tf%kind)
         call add([c%bcs(k)%set%box, c%bcs(k)%set%point, c%bcs(k)%velocity, &

@@ -42,8 +42,8 @@ contains
     this%comm = comm
     ! volumetric locking of the paper's cell: its Poisson springs grow like 1/(1 - nu'^2)
     if (cfg%geometry%cell == 'paper' .and. cfg%geometry%plane == 'strain' .and. &
-        cfg%material%poisson >= 0.45_wp) call log_warn("nu = "// &
-      rtoa(cfg%material%poisson)//" in plane strain: the paper's cell locks (too stiff "// &
+        cfg%materials(1)%poisson >= 0.45_wp) call log_warn("nu = "// &
+      rtoa(cfg%materials(1)%poisson)//" in plane strain: the paper's cell locks (too stiff "// &
       "in bending: by 14% at nu = 0.45, 40% at 0.49, 86% at 0.499 with 8 cells through the "// &
       "depth, docs/stability.md); cell = 'bending' does not")
     call MPI_Comm_rank(comm, this%rank)
@@ -53,7 +53,7 @@ contains
     end associate
 
     ! time step: cell-level bound of omega_max, damping included
-    m_corner = 0.25_wp*cfg%material%density*this%grid%lx*this%grid%ly*this%grid%thickness
+    m_corner = 0.25_wp*cfg%materials(1)%density*this%grid%lx*this%grid%ly*this%grid%thickness
     ! capped damping carries the filtered velocity as two more state values a node
     n_state = 4
     if (this%cfg%damping%kind == 'capped') n_state = 6
@@ -61,7 +61,7 @@ contains
     label = trim(cfg%input_file)//': '//this%grid%label()
     if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
       rtoa(cfg%geometry%cell_size)//')'
-    msg = grid_limit_message(this%grid, this%n_ranks, cfg%material%nonlinear, label)
+    msg = grid_limit_message(this%grid, this%n_ranks, cfg%materials(1)%nonlinear, label)
     stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
     call check_memory(this, n_state, label, stat, msg)
@@ -71,7 +71,7 @@ contains
     ! the same limits for the cells and nodes the ranks hold now: the largest over them
     most = 12_i8*this%lat%n_cells
     call MPI_Allreduce(MPI_IN_PLACE, most, 1, MPI_INTEGER8, MPI_MAX, comm)
-    if (cfg%material%nonlinear .and. most(1) > max_springs_per_rank) then
+    if (cfg%materials(1)%nonlinear .and. most(1) > max_springs_per_rank) then
       msg = springs_limit_message(label, most(1), this%grid%n_cells)
     end if
     stat = merge(1, 0, len(msg) > 0)
@@ -159,7 +159,7 @@ contains
     end do
 
     ! spring probes: the cell that holds the point (the last cell on the far edges)
-    this%moduli = spring_moduli(cfg%material%young, cfg%material%poisson, &
+    this%moduli = spring_moduli(cfg%materials(1)%young, cfg%materials(1)%poisson, &
                                 cfg%geometry%plane == 'strain')
     nsp = count(cfg%probes(:)%springs)
     allocate(this%sp_probe(nsp), this%sp_local(nsp), this%sp_cell(nsp))
@@ -212,8 +212,8 @@ contains
     mc%integrator = 'rk4'
     if (this%verlet) mc%integrator = 'verlet'
     if (this%static) mc%integrator = 'static'
-    mc%nonlinear = this%cfg%material%nonlinear
-    mc%depth = this%cfg%material%history_depth
+    mc%nonlinear = this%cfg%materials(1)%nonlinear
+    mc%depth = this%cfg%materials(1)%history_depth
     mc%idx_bytes = storage_size(1_metis_idx)/8
     need = memory_estimate(mc)
     call memory_check(this%comm, need, label, stat, msg, info)
