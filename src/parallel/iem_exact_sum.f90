@@ -10,7 +10,8 @@ module iem_exact_sum
   use iem_kinds, only: wp, i8, mpi_i8
   implicit none
   private
-  public :: exact_sum_t, exact_sum_allreduce, exact_sum_nbins, exact_sum_renorm_interval
+  public :: exact_sum_t, exact_sum_allreduce, exact_sum_nbins, exact_sum_renorm_interval, &
+            exact_sum_packed_size
 
   !> Bins: bin k holds limbs of weight 2**(32*k - 1074). A term's lowest bit lies at
   !> 2**-1074 .. 2**971, its three limbs reach bin 65; bins 66 and 67 take the carries of
@@ -23,8 +24,10 @@ module iem_exact_sum
   integer(i8), parameter :: exact_sum_renorm_interval = 2_i8**30
   integer(i8), parameter :: mask32 = 2_i8**32 - 1
   integer(i8), parameter :: hidden_bit = 2_i8**52
-  !> Extra entries packed after the bins for MPI: counts of NaN, +Inf and -Inf terms.
-  integer, parameter :: n_packed = exact_sum_nbins + 3
+  !> Length of the packed state (pack/unpack, MPI): the normalised bins, then the counts of
+  !> NaN, +Inf and -Inf terms.
+  integer, parameter :: exact_sum_packed_size = exact_sum_nbins + 3
+  integer, parameter :: n_packed = exact_sum_packed_size
 
   !> Exact accumulator of real(wp) terms: reset, add terms, merge or allreduce, then value().
   type :: exact_sum_t
@@ -42,6 +45,8 @@ module iem_exact_sum
     procedure :: normalise => exact_sum_normalise
     procedure :: value => exact_sum_value
     procedure :: allreduce => exact_sum_allreduce_one
+    procedure :: pack => exact_sum_pack
+    procedure :: unpack => exact_sum_unpack
   end type exact_sum_t
 
 contains
@@ -84,13 +89,14 @@ contains
     end do
   end subroutine exact_sum_add_array
 
-  !> The hot kernel: split x = m * 2**(p - 1074) (m the 53-bit integer significand, p >= 0
-  !> the position of its lowest bit) at bit s = mod(p, 32) of bin k = p/32 into three 32-bit
-  !> limbs and add them, with the sign of x, to bins k, k+1, k+2. Branch-free but for Inf/NaN.
+  !> The hot kernel: x = m * 2**(p - 1074), m the signed 53-bit integer significand, p >= 0
+  !> the position of its lowest bit; m * 2**s (s = mod(p, 32)) is cut into two limbs in
+  !> [0, 2**32) and a signed top limb, added to bins k = p/32, k+1, k+2. Branch-free but for
+  !> Inf/NaN; no multiplication (a signed split costs less than multiplying by the sign).
   pure subroutine deposit(this, x)
     type(exact_sum_t), intent(inout) :: this
     real(wp), intent(in) :: x
-    integer(i8) :: bits, m, t, sgn
+    integer(i8) :: bits, m, t, neg
     integer :: e, p, k, s
     bits = transfer(x, 0_i8)
     e = int(ibits(bits, 52, 11))
@@ -110,12 +116,15 @@ contains
     p = max(e, 1) - 1
     k = shiftr(p, 5)
     s = iand(p, 31)
-    sgn = 1_i8 - 2_i8*shiftr(bits, 63)
-    ! m * 2**s has up to 84 bits: low limb from m shifted left, the rest from m shifted right
-    t = shiftr(m, 32 - s)
-    this%bin(k) = this%bin(k) + sgn*iand(shiftl(m, s), mask32)
-    this%bin(k + 1) = this%bin(k + 1) + sgn*iand(t, mask32)
-    this%bin(k + 2) = this%bin(k + 2) + sgn*shiftr(t, 32)
+    ! two's complement negation when the sign bit is set (neg = -1), else nothing (neg = 0)
+    neg = shifta(bits, 63)
+    m = ieor(m, neg) - neg
+    ! m * 2**s = lo + 2**32 * t with lo the low 32 bits and t = floor(m * 2**s / 2**32);
+    ! t = mid + 2**32 * hi likewise
+    t = shifta(m, 32 - s)
+    this%bin(k) = this%bin(k) + iand(shiftl(m, s), mask32)
+    this%bin(k + 1) = this%bin(k + 1) + iand(t, mask32)
+    this%bin(k + 2) = this%bin(k + 2) + shifta(t, 32)
   end subroutine deposit
 
   !> Propagate carries: every bin but the last in [0, 2**32), the last one signed. The exact
@@ -148,9 +157,9 @@ contains
     class(exact_sum_t), intent(inout) :: this
     type(MPI_Comm), intent(in) :: comm
     integer(i8) :: buf(n_packed)
-    call pack_sum(this, buf)
+    call this%pack(buf)
     call MPI_Allreduce(MPI_IN_PLACE, buf, n_packed, mpi_i8(), MPI_SUM, comm)
-    call unpack_sum(buf, this)
+    call this%unpack(buf)
   end subroutine exact_sum_allreduce_one
 
   !> Make each sums(j) the exact sum over all ranks of comm of their sums(j), with one
@@ -161,34 +170,36 @@ contains
     integer(i8) :: buf(n_packed, size(sums))
     integer :: j
     do j = 1, size(sums)
-      call pack_sum(sums(j), buf(:, j))
+      call sums(j)%pack(buf(:, j))
     end do
     call MPI_Allreduce(MPI_IN_PLACE, buf, size(buf), mpi_i8(), MPI_SUM, comm)
     do j = 1, size(sums)
-      call unpack_sum(buf(:, j), sums(j))
+      call sums(j)%unpack(buf(:, j))
     end do
   end subroutine exact_sum_allreduce
 
-  !> Normalised bins and the non-finite counts in one integer vector. Normalised bins are
-  !> below 2**32, so fewer than 2**31 ranks cannot overflow their integer sum.
-  pure subroutine pack_sum(s, buf)
-    type(exact_sum_t), intent(in) :: s
+  !> The exact state as exact_sum_packed_size integers (normalised bins, non-finite counts),
+  !> e.g. for a checkpoint; unpack restores it. Normalised bins are below 2**32, so the
+  !> element-wise integer sum of fewer than 2**31 packed states cannot overflow.
+  pure subroutine exact_sum_pack(this, buf)
+    class(exact_sum_t), intent(in) :: this
     integer(i8), intent(out) :: buf(:)
-    buf(1:exact_sum_nbins) = s%bin
+    buf(1:exact_sum_nbins) = this%bin
     call carry(buf(1:exact_sum_nbins))
-    buf(exact_sum_nbins + 1:) = [s%n_nan, s%n_pos_inf, s%n_neg_inf]
-  end subroutine pack_sum
+    buf(exact_sum_nbins + 1:n_packed) = [this%n_nan, this%n_pos_inf, this%n_neg_inf]
+  end subroutine exact_sum_pack
 
-  pure subroutine unpack_sum(buf, s)
+  !> Set the state from buf, as written by pack (or an element-wise sum of packed states).
+  pure subroutine exact_sum_unpack(this, buf)
+    class(exact_sum_t), intent(inout) :: this
     integer(i8), intent(in) :: buf(:)
-    type(exact_sum_t), intent(inout) :: s
-    s%bin = buf(1:exact_sum_nbins)
-    call carry(s%bin)
-    s%n_pending = 0_i8
-    s%n_nan = buf(exact_sum_nbins + 1)
-    s%n_pos_inf = buf(exact_sum_nbins + 2)
-    s%n_neg_inf = buf(exact_sum_nbins + 3)
-  end subroutine unpack_sum
+    this%bin = buf(1:exact_sum_nbins)
+    call carry(this%bin)
+    this%n_pending = 0_i8
+    this%n_nan = buf(exact_sum_nbins + 1)
+    this%n_pos_inf = buf(exact_sum_nbins + 2)
+    this%n_neg_inf = buf(exact_sum_nbins + 3)
+  end subroutine exact_sum_unpack
 
   !> The exact sum rounded to the nearest double, ties to even (so a function of the exact
   !> sum only): +Inf or -Inf when that rounding overflows; an exact zero gives +0. A NaN
