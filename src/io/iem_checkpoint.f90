@@ -441,7 +441,8 @@ contains
     type(checkpoint_header_t), intent(in) :: h
     plausible = h%nx >= 1 .and. h%ny >= 1 .and. h%nx < 2_i8**30 .and. h%ny < 2_i8**30
     if (.not. plausible) return
-    plausible = h%n_nodes == (h%nx + 1)*(h%ny + 1) .and. h%n_cells == h%nx*h%ny .and. &
+    plausible = h%n_nodes >= 1 .and. h%n_nodes <= (h%nx + 1)*(h%ny + 1) .and. h%n_cells >= 1 .and. &
+                h%n_cells <= h%nx*h%ny .and. &
                 (h%n_state == 4 .or. h%n_state == 6) .and. &
                 (h%nonlinear == 0 .or. h%nonlinear == 1) .and. h%depth >= 0 .and. &
                 h%depth <= 10000 .and. (h%verlet == 0 .or. h%verlet == 1) .and. &

@@ -1,60 +1,138 @@
-!> Node sets chosen by named edges, boxes, a point (nearest node) or all nodes.
+!> Node sets of the body, for supports, loads and probes (docs/input.md, "Node sets"): by
+!> position (a side of the grid, a box, a point's nearest node, a segment, a disc, all nodes)
+!> or by the body's boundary (all of it, the outline of a shape, a face by its outward
+!> normal); and the boundary length each node carries for a traction on the set.
 module iem_node_sets
   use iem_kinds, only: wp, i8
-  use iem_grid, only: grid_t
+  use iem_body, only: body_t
+  use iem_local_lattice, only: local_lattice_t
   use iem_config, only: node_set_spec_t
   implicit none
   private
-  public :: in_node_set, edge_weight
+  public :: select_nodes
+
+  !> Outward normals of the edges of a cell: bottom, right, top, left.
+  real(wp), parameter :: edge_normal(2, 4) = reshape([0.0_wp, -1.0_wp, 1.0_wp, 0.0_wp, &
+                                                      0.0_wp, 1.0_wp, -1.0_wp, 0.0_wp], [2, 4])
 
 contains
 
-  !> True when grid node (i, j) belongs to the set described by spec.
-  pure logical function in_node_set(spec, grid, i, j) result(inside)
+  !> The owned nodes of lat in the set spec (mask(n_owned)); with weight(n_owned), the length
+  !> of the set's boundary each carries: half of every open edge of the set that ends at it.
+  !> An open edge belongs to a set by position when both its nodes do; to a boundary set when
+  !> it satisfies the set's rule.
+  subroutine select_nodes(spec, body, lat, mask, weight)
     type(node_set_spec_t), intent(in) :: spec
-    type(grid_t), intent(in) :: grid
-    integer, intent(in) :: i, j
-    real(wp) :: x, y, tol
-    integer(i8) :: g
-    select case (trim(spec%where))
-    case ('left')
-      inside = i == 0
-    case ('right')
-      inside = i == grid%nx
-    case ('bottom')
-      inside = j == 0
-    case ('top')
-      inside = j == grid%ny
-    case ('all')
-      inside = .true.
-    case ('box')
+    type(body_t), intent(in) :: body
+    type(local_lattice_t), intent(in) :: lat
+    logical, intent(out) :: mask(:)
+    real(wp), intent(out), optional :: weight(:)
+    logical, allocatable :: in_set(:)
+    integer(i8) :: target
+    integer :: l, c, q, a, b
+    real(wp) :: len
+    logical :: edge_set, take
+
+    edge_set = any(trim(spec%where) == [character(len=8) :: 'boundary', 'shape', 'face'])
+    allocate(in_set(lat%n_local))
+    in_set = .false.
+    if (.not. edge_set) then
+      target = -1
+      if (spec%where == 'point') target = body%nearest_node(spec%point(1), spec%point(2))
+      do l = 1, lat%n_local
+        in_set(l) = node_in(spec, body, lat%xy(:, l), lat%gid(l), target)
+      end do
+    end if
+    if (present(weight)) weight = 0.0_wp
+    do c = 1, lat%n_cells
+      if (lat%cell_open(c) == 0) cycle
+      do q = 1, 4
+        if (.not. lat%edge_open(c, q)) cycle
+        a = lat%cell_nodes(q, c)
+        b = lat%cell_nodes(mod(q, 4) + 1, c)
+        if (edge_set) then
+          take = edge_in(spec, body, lat, c, q)
+          if (take) then
+            in_set(a) = .true.
+            in_set(b) = .true.
+          end if
+        else
+          take = in_set(a) .and. in_set(b)
+        end if
+        if (take .and. present(weight)) then
+          len = merge(body%grid%lx, body%grid%ly, mod(q, 2) == 1)
+          if (a <= lat%n_owned) weight(a) = weight(a) + 0.5_wp*len
+          if (b <= lat%n_owned) weight(b) = weight(b) + 0.5_wp*len
+        end if
+      end do
+    end do
+    mask = in_set(1:lat%n_owned)
+  end subroutine select_nodes
+
+  !> Whether the node g at xy belongs to a set defined by position (target: the node a
+  !> 'point' set selects).
+  pure logical function node_in(spec, body, xy, g, target) result(inside)
+    type(node_set_spec_t), intent(in) :: spec
+    type(body_t), intent(in) :: body
+    real(wp), intent(in) :: xy(2)
+    integer(i8), intent(in) :: g, target
+    real(wp) :: tol, d(2), s(2), t
+    associate(grid => body%grid, x => xy(1), y => xy(2))
       tol = 1.0e-6_wp*min(grid%lx, grid%ly)
-      x = i*grid%lx
-      y = j*grid%ly
-      inside = x >= spec%box(1) - tol .and. x <= spec%box(2) + tol .and. &
-               y >= spec%box(3) - tol .and. y <= spec%box(4) + tol
-    case ('point')
-      g = grid%nearest_node(spec%point(1), spec%point(2))
-      inside = g == grid%node_id(i, j)
+      select case (trim(spec%where))
+      case ('left')
+        inside = x <= tol
+      case ('right')
+        inside = x >= grid%nx*grid%lx - tol
+      case ('bottom')
+        inside = y <= tol
+      case ('top')
+        inside = y >= grid%ny*grid%ly - tol
+      case ('all')
+        inside = .true.
+      case ('box')
+        inside = x >= spec%box(1) - tol .and. x <= spec%box(2) + tol .and. &
+                 y >= spec%box(3) - tol .and. y <= spec%box(4) + tol
+      case ('point')
+        inside = g == target
+      case ('segment')
+        ! distance from the segment (x0, y0)-(x1, y1)
+        s = spec%segment(3:4) - spec%segment(1:2)
+        d = xy - spec%segment(1:2)
+        t = 0.0_wp
+        if (dot_product(s, s) > 0.0_wp) t = min(max(dot_product(d, s)/dot_product(s, s), &
+                                                    0.0_wp), 1.0_wp)
+        inside = norm2(d - t*s) <= tol
+      case ('circle')
+        inside = norm2(xy - spec%center) <= spec%radius + tol
+      case default
+        inside = .false.
+      end select
+    end associate
+  end function node_in
+
+  !> Whether open edge q of local cell c belongs to a boundary set ('boundary', 'shape',
+  !> 'face').
+  pure logical function edge_in(spec, body, lat, c, q) result(inside)
+    type(node_set_spec_t), intent(in) :: spec
+    type(body_t), intent(in) :: body
+    type(local_lattice_t), intent(in) :: lat
+    integer, intent(in) :: c, q
+    integer, parameter :: di(4) = [0, 1, 0, -1], dj(4) = [-1, 0, 1, 0]
+    integer :: ij(2)
+    real(wp) :: n(2)
+    select case (trim(spec%where))
+    case ('boundary')
+      inside = .true.
+    case ('face')
+      n = spec%normal/norm2(spec%normal)
+      inside = dot_product(n, edge_normal(:, q)) >= 0.999_wp
+    case ('shape')
+      ij = body%cell_ij(lat%cell_gid(c))
+      inside = body%source(ij(1), ij(2)) == spec%shape_id .or. &
+               body%source(ij(1) + di(q), ij(2) + dj(q)) == spec%shape_id
     case default
       inside = .false.
     end select
-  end function in_node_set
-
-  !> Length of edge boundary (m) that node (i, j) carries on a named edge (trapezoid rule).
-  pure real(wp) function edge_weight(where, grid, i, j) result(w)
-    character(len=*), intent(in) :: where
-    type(grid_t), intent(in) :: grid
-    integer, intent(in) :: i, j
-    select case (trim(where))
-    case ('bottom', 'top')
-      w = grid%lx
-      if (i == 0 .or. i == grid%nx) w = 0.5_wp*grid%lx
-    case ('left', 'right')
-      w = grid%ly
-      if (j == 0 .or. j == grid%ny) w = 0.5_wp*grid%ly
-    case default
-      w = 0.0_wp
-    end select
-  end function edge_weight
+  end function edge_in
 end module iem_node_sets

@@ -1,15 +1,16 @@
-!> Domain decomposition: METIS partition of the grid's nodes (on rank 0, broadcast), then each
-!> rank's local lattice (owned + halo nodes, cells touching owned nodes) and its halo plan.
+!> Domain decomposition: METIS partition of the body's nodes (on rank 0, broadcast), then each
+!> rank's local lattice (owned + halo nodes, cells touching owned nodes, from the body's
+!> cell-to-node table) and its halo plan (from the cells that join owned and halo nodes).
 module iem_decomposition
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Bcast, MPI_INTEGER
   use iem_kinds, only: wp, ip, i8, mpi_ip
   use iem_build_info, only: metis_idx
-  use iem_grid, only: grid_t
+  use, intrinsic :: iso_fortran_env, only: int8
+  use iem_body, only: body_t
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
-  use iem_metis, only: partition_grid, partition_ok, partition_no_memory, &
+  use iem_metis, only: partition_body, partition_ok, partition_no_memory, &
                        partition_metis_no_memory
-  use iem_limits, only: metis_graph_entries
   use iem_alloc_guard, only: alloc_guard_t
   use iem_memory, only: bytes_text
   use iem_sort, only: sort_i8
@@ -19,11 +20,11 @@ module iem_decomposition
 
 contains
 
-  !> Partition the grid over the ranks of comm and build this rank's lattice and halo plan.
+  !> Partition the body over the ranks of comm and build this rank's lattice and halo plan.
   !> The halo carries width values a node (default 4: u and v). Collective; stat /= 0 with msg
   !> on every rank when it fails (a failed allocation included).
-  subroutine decompose(grid, comm, lat, halo, stat, msg, width)
-    type(grid_t), intent(in) :: grid
+  subroutine decompose(body, comm, lat, halo, stat, msg, width)
+    type(body_t), intent(in) :: body
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(inout) :: lat
     type(halo_t), intent(inout) :: halo
@@ -40,58 +41,57 @@ contains
     call MPI_Comm_size(comm, nranks)
     stat = 0
     msg = ''
-    if (grid%n_nodes < 2*nranks) then
+    if (body%n_nodes < 2*nranks) then
       stat = 1
-      msg = 'the grid has fewer than 2 nodes per rank; use fewer ranks or a finer grid'
+      msg = 'the body has fewer than 2 nodes per rank; use fewer ranks or a finer grid'
       return
     end if
-    n = grid%n_nodes
+    n = body%n_nodes
     allocate(part(0:n - 1), stat=ierr)
     call guard%note(ierr, 'the partition of the whole body', 4.0_wp*n)
-    call guard%agree(comm, grid%label(), stat, msg)
+    call guard%agree(comm, body%grid%label(), stat, msg)
     if (stat /= 0) return
-    if (rank == 0) call partition_grid(grid, nranks, part, stat)
+    if (rank == 0) call partition_body(body, nranks, part, stat)
     call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
     select case (stat)
     case (partition_ok)
     case (partition_no_memory)
-      msg = grid%label()//': out of memory on rank 0: allocating the METIS graph of the '// &
-            'whole body ('//bytes_text(real(metis_graph_entries(grid) + 2*n, wp)* &
-            storage_size(1_metis_idx)/8)//') failed; use a coarser grid or a node with '// &
-            'more memory for rank 0 (docs/input.md, Limits)'
+      msg = body%grid%label()//': out of memory on rank 0: allocating the METIS graph of '// &
+            'the whole body (about '//bytes_text(10.0_wp*n*storage_size(1_metis_idx)/8)// &
+            ') failed; use a coarser grid or a node with more memory for rank 0 '// &
+            '(docs/input.md, Limits)'
     case (partition_metis_no_memory)
-      msg = grid%label()//': METIS_PartGraphKway ran out of memory on rank 0; use a '// &
+      msg = body%grid%label()//': METIS_PartGraphKway ran out of memory on rank 0; use a '// &
             'coarser grid or a node with more memory for rank 0 (docs/input.md, Limits)'
     case default
       msg = 'METIS_PartGraphKway failed'
     end select
     if (stat /= partition_ok) return
     call MPI_Bcast(part, int(n), mpi_ip(), 0, comm)
-    call build_local(grid, part, rank, lat, guard)
-    call guard%agree(comm, grid%label(), stat, msg)
+    call build_local(body, part, rank, lat, guard)
+    call guard%agree(comm, body%grid%label(), stat, msg)
     if (stat /= 0) return
     w = 4
     if (present(width)) w = width
-    call build_halo(grid, part, rank, comm, lat, halo, w)
+    call build_halo(part, rank, comm, lat, halo, w)
   end subroutine decompose
 
   !> Build the local lattice of rank `me` from the global part array; a failed allocation is
   !> noted in guard (and the lattice left incomplete).
-  subroutine build_local(grid, part, me, lat, guard)
-    type(grid_t), intent(in) :: grid
+  subroutine build_local(body, part, me, lat, guard)
+    type(body_t), intent(in) :: body
     integer(ip), intent(in) :: part(0:)
     integer, intent(in) :: me
     type(local_lattice_t), intent(inout) :: lat
     type(alloc_guard_t), intent(inout) :: guard
     integer(ip), allocatable :: g2l(:)
-    integer(i8), allocatable :: keys(:), cell_gid(:)
+    integer(i8), allocatable :: keys(:)
     integer(i8) :: g, c, corners(4), nn
-    integer :: n_owned, n_cells, n_halo, k, q, l, ierr
+    integer :: n_owned, n_cells, n_halo, k, q, l, ierr, ij(2)
+    integer, parameter :: di(4) = [0, 1, 0, -1], dj(4) = [-1, 0, 1, 0]
 
     call lat%free()
-    lat%nx = grid%nx
-    lat%ny = grid%ny
-    nn = grid%n_nodes
+    nn = body%n_nodes
     allocate(g2l(0:nn - 1), stat=ierr)
     call guard%note(ierr, 'the global-to-local node map', 4.0_wp*nn)
     if (guard%failed) return
@@ -99,22 +99,23 @@ contains
     n_owned = count(part == me)
     ! cells touching an owned node, ascending
     n_cells = 0
-    do c = 0, grid%n_cells - 1
-      corners = grid%cell_corners(c)
+    do c = 0, body%n_cells - 1
+      corners = body%cell_corners(c)
       if (any(part(corners) == me)) n_cells = n_cells + 1
     end do
-    allocate(cell_gid(n_cells), lat%cell_nodes(4, n_cells), stat=ierr)
-    call guard%note(ierr, 'the cells of the rank', 24.0_wp*n_cells)
+    allocate(lat%cell_gid(n_cells), lat%cell_nodes(4, n_cells), lat%cell_mat(n_cells), &
+             lat%cell_open(n_cells), stat=ierr)
+    call guard%note(ierr, 'the cells of the rank', 29.0_wp*n_cells)
     if (guard%failed) return
     k = 0
-    do c = 0, grid%n_cells - 1
-      corners = grid%cell_corners(c)
+    do c = 0, body%n_cells - 1
+      corners = body%cell_corners(c)
       if (any(part(corners) == me)) then
         k = k + 1
-        cell_gid(k) = c
+        lat%cell_gid(k) = c
       end if
     end do
-    ! owned nodes ascending, then halo nodes sorted by (owner, global index)
+    ! owned nodes ascending, then halo nodes sorted by (owner, global number)
     l = 0
     do g = 0, nn - 1
       if (part(g) == me) then
@@ -124,7 +125,7 @@ contains
     end do
     n_halo = 0
     do k = 1, n_cells
-      corners = grid%cell_corners(cell_gid(k))
+      corners = body%cell_corners(lat%cell_gid(k))
       do q = 1, 4
         if (g2l(corners(q)) == 0) then
           g2l(corners(q)) = -1
@@ -132,12 +133,12 @@ contains
         end if
       end do
     end do
-    allocate(keys(n_halo), lat%gid(n_owned + n_halo), stat=ierr)
-    call guard%note(ierr, 'the nodes of the rank', 8.0_wp*n_owned + 16.0_wp*n_halo)
+    allocate(keys(n_halo), lat%gid(n_owned + n_halo), lat%xy(2, n_owned + n_halo), stat=ierr)
+    call guard%note(ierr, 'the nodes of the rank', 24.0_wp*n_owned + 32.0_wp*n_halo)
     if (guard%failed) return
     n_halo = 0
     do k = 1, n_cells
-      corners = grid%cell_corners(cell_gid(k))
+      corners = body%cell_corners(lat%cell_gid(k))
       do q = 1, 4
         g = corners(q)
         if (g2l(g) == -1) then
@@ -163,14 +164,25 @@ contains
       lat%gid(n_owned + k) = g
       g2l(g) = int(n_owned + k, ip)
     end do
+    do l = 1, lat%n_local
+      lat%xy(:, l) = body%node_xy(lat%gid(l))
+    end do
+    lat%mixed = body%n_materials > 1
     do k = 1, n_cells
-      lat%cell_nodes(:, k) = g2l(grid%cell_corners(cell_gid(k)))
+      lat%cell_nodes(:, k) = g2l(body%cell_corners(lat%cell_gid(k)))
+      ij = body%cell_ij(lat%cell_gid(k))
+      lat%cell_mat(k) = body%material(ij(1), ij(2))
+      lat%cell_open(k) = 0_int8
+      do q = 1, 4
+        if (body%material(ij(1) + di(q), ij(2) + dj(q)) == 0) &
+          lat%cell_open(k) = ibset(lat%cell_open(k), q - 1)
+      end do
     end do
   end subroutine build_local
 
-  !> Build the halo plan: whom we receive from (contiguous halo ranges) and what we send.
-  subroutine build_halo(grid, part, me, comm, lat, halo, width)
-    type(grid_t), intent(in) :: grid
+  !> Build the halo plan: whom we receive from (contiguous halo ranges) and what we send: an
+  !> owned node goes to every rank that owns a node of one of its cells.
+  subroutine build_halo(part, me, comm, lat, halo, width)
     integer(ip), intent(in) :: part(0:)
     integer, intent(in) :: me
     type(MPI_Comm), intent(in) :: comm
@@ -179,9 +191,9 @@ contains
     integer, intent(in) :: width
     integer, allocatable :: ranks(:)
     integer(ip), allocatable :: recv_first(:), send_first(:), send_node(:), cnt(:), pos(:)
-    integer :: nb, k, l, q, r, di, dj, ii, jj, nranks_seen
-    integer :: need(9)
-    logical :: dup
+    integer, allocatable :: nb_of(:)
+    logical, allocatable :: sends(:, :)
+    integer :: nb, k, l, q, p, c, r
 
     ! neighbours = owners of halo nodes, in the order the halo is sorted (by owner)
     nb = 0
@@ -196,7 +208,8 @@ contains
         nb = nb + 1
       end if
     end do
-    allocate(recv_first(nb + 1))
+    allocate(recv_first(nb + 1), nb_of(lat%n_local))
+    nb_of = 0
     k = 0
     do l = lat%n_owned + 1, lat%n_local
       r = part(lat%gid(l))
@@ -207,63 +220,38 @@ contains
         k = k + 1
         recv_first(k) = int(l, ip)
       end if
+      nb_of(l) = k
     end do
     recv_first(nb + 1) = int(lat%n_local + 1, ip)
-    ! send lists: owned node l goes to every other rank owning a node of one of its cells
-    allocate(cnt(nb), source=0_ip)
-    do l = 1, lat%n_owned
-      call ranks_needing(l, need, nranks_seen)
-      do k = 1, nranks_seen
-        r = findloc(ranks, need(k), 1)
-        cnt(r) = cnt(r) + 1
+    ! owned corner p of a cell goes to the owner of every halo corner q of that cell
+    allocate(sends(lat%n_owned, nb))
+    sends = .false.
+    do c = 1, lat%n_cells
+      do q = 1, 4
+        if (nb_of(lat%cell_nodes(q, c)) == 0) cycle
+        do p = 1, 4
+          if (lat%cell_nodes(p, c) <= lat%n_owned) sends(lat%cell_nodes(p, c), &
+                                                         nb_of(lat%cell_nodes(q, c))) = .true.
+        end do
       end do
     end do
-    allocate(send_first(nb + 1), send_node(sum(cnt)), pos(nb))
+    allocate(cnt(nb), send_first(nb + 1), pos(nb))
+    do k = 1, nb
+      cnt(k) = int(count(sends(:, k)), ip)
+    end do
+    allocate(send_node(sum(cnt)))
     send_first(1) = 1
     do k = 1, nb
       send_first(k + 1) = send_first(k) + cnt(k)
     end do
     pos = send_first(1:nb)
-    do l = 1, lat%n_owned
-      call ranks_needing(l, need, nranks_seen)
-      do k = 1, nranks_seen
-        r = findloc(ranks, need(k), 1)
-        send_node(pos(r)) = int(l, ip)
-        pos(r) = pos(r) + 1
+    do k = 1, nb
+      do l = 1, lat%n_owned
+        if (.not. sends(l, k)) cycle
+        send_node(pos(k)) = int(l, ip)
+        pos(k) = pos(k) + 1
       end do
     end do
     call halo%init(comm, ranks, recv_first, send_first, send_node, width)
-
-  contains
-
-    !> Ranks other than me that own a node sharing a cell with owned node l.
-    subroutine ranks_needing(l_, need_, n_)
-      integer, intent(in) :: l_
-      integer, intent(out) :: need_(9), n_
-      integer :: o, ij(2)
-      n_ = 0
-      ij = lat%node_ij(l_)
-      do dj = -1, 1
-        do di = -1, 1
-          ii = ij(1) + di
-          jj = ij(2) + dj
-          if (ii < 0 .or. ii > grid%nx .or. jj < 0 .or. jj > grid%ny) cycle
-          o = part(grid%node_id(ii, jj))
-          if (o == me) cycle
-          dup = .false.
-          do q = 1, n_
-            if (need_(q) == o) dup = .true.
-          end do
-          if (.not. dup) then
-            n_ = n_ + 1
-            need_(n_) = o
-          end if
-        end do
-      end do
-      ! every such rank must be a neighbour we receive from (the relation is symmetric)
-      do q = 1, n_
-        if (findloc(ranks, need_(q), 1) == 0) error stop 'iem: halo plan is not symmetric'
-      end do
-    end subroutine ranks_needing
   end subroutine build_halo
 end module iem_decomposition

@@ -1,13 +1,13 @@
-!> METIS k-way partition of the node graph of the structured grid.
+!> METIS k-way partition of the graph of the body's nodes (two nodes are joined when they share a
+!> cell of the body).
 module iem_metis
   use, intrinsic :: iso_c_binding, only: c_ptr, c_null_ptr, c_int
   use iem_kinds, only: ip, i8
   use iem_build_info, only: metis_idx
-  use iem_grid, only: grid_t
-  use iem_limits, only: metis_graph_entries
+  use iem_body, only: body_t
   implicit none
   private
-  public :: partition_grid
+  public :: partition_body, shares_cell
 
   integer, parameter :: metis_noptions = 40, metis_option_contig = 11, metis_ok = 1, &
                         metis_error_memory = -3
@@ -39,51 +39,58 @@ module iem_metis
 
 contains
 
-  !> Part (0..nparts-1) of every node, from METIS on the graph of nodes that share a cell;
-  !> stat is one of partition_ok, partition_failed, partition_no_memory (the graph's arrays),
-  !> partition_metis_no_memory. The graph's entries must fit idx_t (iem_limits).
-  subroutine partition_grid(grid, nparts, part, stat)
-    type(grid_t), intent(in) :: grid
+  !> Part (0..nparts-1) of every node of the body, from METIS on the graph of nodes that
+  !> share a cell; stat is one of partition_ok, partition_failed, partition_no_memory (the
+  !> graph's arrays), partition_metis_no_memory. Neighbours are listed in ascending number,
+  !> so a full rectangle gives the graph (and the partition) of its grid.
+  subroutine partition_body(body, nparts, part, stat)
+    type(body_t), intent(in) :: body
     integer, intent(in) :: nparts
     integer(ip), intent(out) :: part(0:)
     integer, intent(out) :: stat
     integer(metis_idx), allocatable :: xadj(:), adjncy(:), mpart(:)
     integer(metis_idx) :: options(metis_noptions), nv, ncon, np, objval
-    integer :: i, j, di, dj, ii, jj, ierr
-    integer(i8) :: g, k
+    integer :: ij(2), di, dj, ierr
+    integer(i8) :: g, k, n_entries, h
 
     stat = partition_ok
     if (nparts == 1) then
       part = 0
       return
     end if
-    nv = int(grid%n_nodes, metis_idx)
-    allocate(xadj(0:grid%n_nodes), adjncy(metis_graph_entries(grid)), &
-             mpart(0:grid%n_nodes - 1), stat=ierr)
+    nv = int(body%n_nodes, metis_idx)
+    n_entries = 0
+    do g = 0, body%n_nodes - 1
+      ij = body%node_ij(g)
+      do dj = -1, 1
+        do di = -1, 1
+          if (shares_cell(body, ij(1), ij(2), di, dj)) n_entries = n_entries + 1
+        end do
+      end do
+    end do
+    allocate(xadj(0:body%n_nodes), adjncy(n_entries), mpart(0:body%n_nodes - 1), stat=ierr)
     if (ierr /= 0) then
       stat = partition_no_memory
       return
     end if
     k = 0
     xadj(0) = 0
-    do j = 0, grid%ny
-      do i = 0, grid%nx
-        do dj = -1, 1
-          do di = -1, 1
-            if (di == 0 .and. dj == 0) cycle
-            ii = i + di
-            jj = j + dj
-            if (ii < 0 .or. ii > grid%nx .or. jj < 0 .or. jj > grid%ny) cycle
-            k = k + 1
-            adjncy(k) = int(grid%node_id(ii, jj), metis_idx)
-          end do
+    do g = 0, body%n_nodes - 1
+      ij = body%node_ij(g)
+      do dj = -1, 1
+        do di = -1, 1
+          if (.not. shares_cell(body, ij(1), ij(2), di, dj)) cycle
+          h = body%node_number(ij(1) + di, ij(2) + dj)
+          k = k + 1
+          adjncy(k) = int(h, metis_idx)
         end do
-        g = grid%node_id(i, j)
-        xadj(g + 1) = int(k, metis_idx)
       end do
+      xadj(g + 1) = int(k, metis_idx)
     end do
     stat = metis_set_default_options(options)
     options(metis_option_contig + 1) = 1
+    ! a body in several pieces cannot have contiguous parts
+    if (body%n_pieces > 1) options(metis_option_contig + 1) = 0
     ncon = 1
     np = int(nparts, metis_idx)
     stat = metis_part_graph_kway(nv, ncon, xadj, adjncy, c_null_ptr, c_null_ptr, c_null_ptr, &
@@ -94,5 +101,20 @@ contains
     end if
     stat = partition_ok
     part = int(mpart, ip)
-  end subroutine partition_grid
+  end subroutine partition_body
+
+  !> True when grid node (i + di, j + dj), (di, dj) /= (0, 0), shares a cell of the body with
+  !> grid node (i, j).
+  pure logical function shares_cell(body, i, j, di, dj) result(shared)
+    type(body_t), intent(in) :: body
+    integer, intent(in) :: i, j, di, dj
+    integer :: ci, cj
+    shared = .false.
+    if (di == 0 .and. dj == 0) return
+    do cj = max(j, j + dj) - 1, min(j, j + dj)
+      do ci = max(i, i + di) - 1, min(i, i + di)
+        if (body%material(ci, cj) > 0) shared = .true.
+      end do
+    end do
+  end function shares_cell
 end module iem_metis

@@ -4,8 +4,9 @@ module iem_model
   use iem_kinds, only: wp, ip, i8
   use iem_config, only: config_t, time_function_spec_t
   use iem_grid, only: grid_t
+  use iem_body, only: body_t
   use iem_local_lattice, only: local_lattice_t
-  use iem_node_sets, only: in_node_set, edge_weight
+  use iem_node_sets, only: select_nodes
   use iem_spring_constants, only: cell_constants_t, cell_constants
   use iem_cell_kernel, only: cell_forces
   use iem_nonlinear_springs, only: nonlinear_springs_t, reference_strains
@@ -21,7 +22,13 @@ module iem_model
   !> Everything the force evaluation of one rank needs, with preallocated work arrays.
   type :: model_t
     type(grid_t) :: grid
+    !> Cell constants and density of each material; k is that of material 1 (the only one
+    !> of a single-material body; its geometry lx, ly, il0 is that of every cell).
     type(cell_constants_t) :: k
+    type(cell_constants_t), allocatable :: ks(:)
+    real(wp), allocatable :: densities(:)
+    !> Whether the cells have several materials (the kernel then reads each cell's).
+    logical :: mixed = .false.
     real(wp) :: density = 0.0_wp, alpha = 0.0_wp, beta = 0.0_wp
     !> Capped stiffness damping: the stiffness damping acts on w, the velocity low-pass
     !> filtered at omega_cap (rad/s), carried as state rows 5:6; 0 when not used.
@@ -63,28 +70,39 @@ module iem_model
 
 contains
 
-  !> Build the model of this rank from the configuration and its local lattice; n_selected
-  !> counts, per &bc then per &load, the owned nodes each selects (the caller sums them).
-  !> A failed allocation is handed to guard (the model is then incomplete); without guard it
-  !> stops the program.
-  subroutine model_init(this, cfg, grid, lat, n_selected, guard)
+  !> Build the model of this rank from the configuration, its body and its local lattice;
+  !> n_selected counts, per &bc then per &load, the owned nodes each selects (the caller sums
+  !> them). A failed allocation is handed to guard (the model is then incomplete); without
+  !> guard it stops the program.
+  subroutine model_init(this, cfg, body, lat, n_selected, guard)
     class(model_t), intent(inout) :: this
     type(config_t), intent(in) :: cfg
-    type(grid_t), intent(in) :: grid
+    type(body_t), intent(in) :: body
     type(local_lattice_t), intent(in) :: lat
     integer(i8), intent(out) :: n_selected(:)
     type(alloc_guard_t), intent(inout), optional :: guard
-    integer :: l, q, b, n, c, ld, ierr
-    integer, allocatable :: ij(:, :)
-    logical, allocatable :: taken(:, :)
-    real(wp) :: mcell, w, er_pos(3), er_neg(3)
+    integer :: l, q, b, n, c, ld, ierr, mt, nm
+    integer, allocatable :: cnt(:, :)
+    logical, allocatable :: taken(:, :), mask(:)
+    real(wp), allocatable :: weight(:), mcell(:)
+    real(wp) :: er_pos(3), er_neg(3)
+    real(wp), parameter :: elastic_er = 1.0e300_wp
     type(alloc_guard_t) :: g
 
-    this%grid = grid
-    this%density = cfg%materials(1)%density
-    this%k = cell_constants(cfg%materials(1)%young, cfg%materials(1)%poisson, &
-                            cfg%geometry%plane == 'strain', grid%lx, grid%ly, grid%thickness, &
-                            bending=cfg%geometry%cell == 'bending')
+    this%grid = body%grid
+    nm = size(cfg%materials)
+    allocate(this%ks(nm), this%densities(nm), mcell(nm))
+    do mt = 1, nm
+      this%ks(mt) = cell_constants(cfg%materials(mt)%young, cfg%materials(mt)%poisson, &
+                                   cfg%geometry%plane == 'strain', body%grid%lx, &
+                                   body%grid%ly, body%grid%thickness, &
+                                   bending=cfg%geometry%cell == 'bending')
+      this%densities(mt) = cfg%materials(mt)%density
+      mcell(mt) = 0.25_wp*this%densities(mt)*body%grid%lx*body%grid%ly*body%grid%thickness
+    end do
+    this%k = this%ks(1)
+    this%density = this%densities(1)
+    this%mixed = nm > 1
     this%alpha = cfg%damping%alpha
     this%beta = cfg%damping%beta
     this%omega_cap = 0.0_wp
@@ -94,34 +112,55 @@ contains
       this%beta = capped_beta(cfg%damping%ratio, 2.0_wp*pi*cfg%damping%frequency, this%omega_cap)
       this%n_state = 6
     end if
-    this%nonlinear = cfg%materials(1)%nonlinear
+    this%nonlinear = any(cfg%materials(:)%nonlinear)
     if (this%nonlinear) then
-      associate(mat => cfg%materials(1))
-        call reference_strains(mat%young, mat%poisson, cfg%geometry%plane == 'strain', &
-                               mat%tensile_strength, mat%compressive_strength, &
-                               mat%shear_strength, er_pos, er_neg)
-        call this%nl%init(lat%n_cells, er_pos, er_neg, [this%k%ce, this%k%ch, this%k%cg], &
-                          mat%history_depth, g)
-      end associate
-      if (g%failed) then
-        call g%pass(guard)
-        return
-      end if
+      ! materials without nonlinear springs keep theirs on the elastic line (a reference
+      ! strain so large that psi = e to the last bit)
+      do mt = 1, nm
+        associate(mat => cfg%materials(mt))
+          if (mat%nonlinear) then
+            call reference_strains(mat%young, mat%poisson, cfg%geometry%plane == 'strain', &
+                                   mat%tensile_strength, mat%compressive_strength, &
+                                   mat%shear_strength, er_pos, er_neg)
+          else
+            er_pos = elastic_er
+            er_neg = elastic_er
+          end if
+          if (mt == 1) then
+            call this%nl%init(lat%n_cells, er_pos, er_neg, [this%ks(1)%ce, this%ks(1)%ch, &
+                              this%ks(1)%cg], maxval(cfg%materials(:)%history_depth), g, nm)
+            if (g%failed) then
+              call g%pass(guard)
+              return
+            end if
+          else
+            call this%nl%set_law(mt, er_pos, er_neg, [this%ks(mt)%ce, this%ks(mt)%ch, &
+                                 this%ks(mt)%cg])
+          end if
+        end associate
+      end do
     end if
-    mcell = 0.25_wp*this%density*grid%lx*grid%ly*grid%thickness
-    allocate(this%mass(lat%n_owned), ij(2, lat%n_owned), this%f(2, lat%n_local), &
-             taken(2, lat%n_owned), stat=ierr)
-    call g%note(ierr, 'the model of the rank', 24.0_wp*lat%n_owned + 16.0_wp*lat%n_local)
+    allocate(this%mass(lat%n_owned), cnt(nm, lat%n_owned), this%f(2, lat%n_local), &
+             taken(2, lat%n_owned), mask(lat%n_owned), weight(lat%n_owned), stat=ierr)
+    call g%note(ierr, 'the model of the rank', (33.0_wp + 4*nm)*lat%n_owned + &
+                16.0_wp*lat%n_local)
     if (g%failed) then
       call g%pass(guard)
       return
     end if
-    do l = 1, lat%n_owned
-      this%mass(l) = mcell*count(lat%node_corners(l) > 0)
+    ! lumped masses: a quarter of each cell at each corner, by material
+    cnt = 0
+    do c = 1, lat%n_cells
+      do q = 1, 4
+        l = lat%cell_nodes(q, c)
+        if (l <= lat%n_owned) cnt(lat%cell_mat(c), l) = cnt(lat%cell_mat(c), l) + 1
+      end do
     end do
-    ! grid indices of the owned nodes, for selecting node sets
     do l = 1, lat%n_owned
-      ij(:, l) = lat%node_ij(l)
+      this%mass(l) = 0.0_wp
+      do mt = 1, nm
+        if (cnt(mt, l) > 0) this%mass(l) = this%mass(l) + mcell(mt)*cnt(mt, l)
+      end do
     end do
     this%f = 0.0_wp
     n_selected = 0
@@ -129,12 +168,9 @@ contains
     ! boundary conditions: a later &bc overrides an earlier one on the same dof
     n = 0
     do b = 1, size(cfg%bcs)
-      do l = 1, lat%n_owned
-        if (in_node_set(cfg%bcs(b)%set, grid, ij(1, l), ij(2, l))) then
-          n_selected(b) = n_selected(b) + 1
-          n = n + count(cfg%bcs(b)%dof)
-        end if
-      end do
+      call select_nodes(cfg%bcs(b)%set, body, lat, mask)
+      n_selected(b) = count(mask)
+      n = n + count(mask)*count(cfg%bcs(b)%dof)
     end do
     allocate(this%bc_node(n), this%bc_comp(n), this%bc_id(n), stat=ierr)
     call g%note(ierr, 'the prescribed dofs of the rank', 12.0_wp*n)
@@ -151,8 +187,9 @@ contains
       this%bc_velocity(:, b) = 0.0_wp
       if (cfg%bcs(b)%kind == 'velocity') this%bc_velocity(:, b) = cfg%bcs(b)%velocity
       this%bc_tf(b) = cfg%bcs(b)%tf
+      call select_nodes(cfg%bcs(b)%set, body, lat, mask)
       do l = 1, lat%n_owned
-        if (.not. in_node_set(cfg%bcs(b)%set, grid, ij(1, l), ij(2, l))) cycle
+        if (.not. mask(l)) cycle
         do c = 1, 2
           if (.not. cfg%bcs(b)%dof(c)) cycle
           if (taken(c, l)) then
@@ -176,12 +213,9 @@ contains
     ! loads
     n = 0
     do ld = 1, size(cfg%loads)
-      do l = 1, lat%n_owned
-        if (in_node_set(cfg%loads(ld)%set, grid, ij(1, l), ij(2, l))) then
-          n_selected(size(cfg%bcs) + ld) = n_selected(size(cfg%bcs) + ld) + 1
-          n = n + 1
-        end if
-      end do
+      call select_nodes(cfg%loads(ld)%set, body, lat, mask)
+      n_selected(size(cfg%bcs) + ld) = count(mask)
+      n = n + count(mask)
     end do
     allocate(this%load_node(n), this%load_id(n), this%load_force(2, n), stat=ierr)
     call g%note(ierr, 'the loaded nodes of the rank', 24.0_wp*n)
@@ -194,8 +228,9 @@ contains
     n = 0
     do ld = 1, size(cfg%loads)
       this%load_tf(ld) = cfg%loads(ld)%tf
+      call select_nodes(cfg%loads(ld)%set, body, lat, mask, weight)
       do l = 1, lat%n_owned
-        if (.not. in_node_set(cfg%loads(ld)%set, grid, ij(1, l), ij(2, l))) cycle
+        if (.not. mask(l)) cycle
         n = n + 1
         this%load_node(n) = l
         this%load_id(n) = ld
@@ -203,8 +238,7 @@ contains
         case ('nodal')
           this%load_force(:, n) = cfg%loads(ld)%value
         case ('edge')
-          w = edge_weight(cfg%loads(ld)%set%where, grid, ij(1, l), ij(2, l))
-          this%load_force(:, n) = cfg%loads(ld)%value*w*grid%thickness
+          this%load_force(:, n) = cfg%loads(ld)%value*weight(l)*body%grid%thickness
         case ('gravity')
           this%load_force(:, n) = cfg%loads(ld)%value*this%mass(l)
         end select
@@ -279,8 +313,17 @@ contains
     if (this%nonlinear) then
       accept = .false.
       if (present(commit)) accept = commit
+      if (this%mixed) then
+        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                         this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
+                         lat%cell_mat)
+      else
+        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                         this%energy, p_damp, this%n_state - 1, this%nl, accept)
+      end if
+    else if (this%mixed) then
       call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                       this%energy, p_damp, this%n_state - 1, this%nl, accept)
+                       this%energy, p_damp, this%n_state - 1, ks=this%ks, cell_mat=lat%cell_mat)
     else
       call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
                        this%energy, p_damp, this%n_state - 1)

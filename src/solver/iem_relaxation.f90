@@ -111,9 +111,10 @@ contains
     type(alloc_guard_t), intent(inout), optional :: guard
     type(alloc_guard_t) :: g
     integer :: ierr
-    real(wp) :: kc(8, 8), rowsum(2, 4), m_corner, stiff(2)
+    real(wp) :: kc(8, 8), m_corner
+    real(wp), allocatable :: rowsum(:, :, :)
     real(wp), allocatable :: fref(:, :)
-    integer :: l, q, comp, corner, n, ld, corners(4)
+    integer :: l, q, comp, corner, n, ld, mt, c
 
     call this%free()
     n = lat%n_owned
@@ -152,25 +153,33 @@ contains
 
     ! Fictitious masses: mk = (a stiffness bound of the dof) / (2 * safety)^2, so that the
     ! central-difference step dt = 1 in the scaled system is stable, dt*omega_max <= 2*safety.
-    m_corner = 0.25_wp*model%density*model%grid%lx*model%grid%ly*model%grid%thickness
-    this%omega_max = cell_omega_max(model%k, m_corner)
+    this%omega_max = 0.0_wp
+    do mt = 1, size(model%ks)
+      m_corner = 0.25_wp*model%densities(mt)*model%grid%lx*model%grid%ly*model%grid%thickness
+      this%omega_max = max(this%omega_max, cell_omega_max(model%ks(mt), m_corner))
+    end do
     if (settings%mass == 'gershgorin') then
-      ! per dof: Gershgorin row sum of the stiffness, summed cell by cell (an upper bound of
-      ! the assembled row sum); dt = 1 s of fictitious time
-      kc = cell_stiffness(model%k)
-      do corner = 1, 4
-        do comp = 1, 2
-          rowsum(comp, corner) = sum(abs(kc(2*(corner - 1) + comp, :)))
+      ! per dof: Gershgorin row sum of the stiffness, summed cell by cell in ascending cell
+      ! order (an upper bound of the assembled row sum); dt = 1 s of fictitious time
+      allocate(rowsum(2, 4, size(model%ks)))
+      do mt = 1, size(model%ks)
+        kc = cell_stiffness(model%ks(mt))
+        do corner = 1, 4
+          do comp = 1, 2
+            rowsum(comp, corner, mt) = sum(abs(kc(2*(corner - 1) + comp, :)))
+          end do
         end do
       end do
       this%dt = 1.0_wp
-      do l = 1, n
-        stiff = 0.0_wp
-        corners = lat%node_corners(l)
+      this%mk(:, 1:n) = 0.0_wp
+      do c = 1, lat%n_cells
         do q = 1, 4
-          if (corners(q) > 0) stiff = stiff + rowsum(:, corners(q))
+          l = lat%cell_nodes(q, c)
+          if (l <= n) this%mk(:, l) = this%mk(:, l) + rowsum(:, q, lat%cell_mat(c))
         end do
-        this%mk(:, l) = stiff/(2.0_wp*relax_step_safety)**2
+      end do
+      do l = 1, n
+        this%mk(:, l) = this%mk(:, l)/(2.0_wp*relax_step_safety)**2
       end do
     else
       ! the model's lumped masses with the step from the cell-level bound of omega_max

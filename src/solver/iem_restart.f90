@@ -106,8 +106,8 @@ contains
     h%n_ranks = this%n_ranks
     h%model_hash = model_hash(this)
     h%warned = merge(1_i8, 0_i8, this%warned)
-    h%n_nodes = this%grid%n_nodes
-    h%n_cells = this%grid%n_cells
+    h%n_nodes = this%body%n_nodes
+    h%n_cells = this%body%n_cells
     h%t = t
     h%dt = this%dt
     h%e0 = this%e0
@@ -254,8 +254,8 @@ contains
     do k = 1, size(sp_names)
       sp_names(k) = this%cfg%probes(this%sp_probe(k))%name
     end do
-    call this%out%reopen(trim(this%cfg%run%output_file), this%comm, this%grid%n_nodes, &
-      this%grid%n_cells, this%lat%gid(1:this%lat%n_owned), counted_cell_gids(this), names, &
+    call this%out%reopen(trim(this%cfg%run%output_file), this%comm, this%body%n_nodes, &
+      this%body%n_cells, this%lat%gid(1:this%lat%n_owned), counted_cell_gids(this), names, &
       sp_names, this%restart%n_samples, this%restart%n_frames, stat, msg)
     if (stat /= 0) return
     this%output_open = .true.

@@ -7,6 +7,7 @@ module iem_simulation
   use iem_kinds, only: wp, i8
   use iem_config, only: config_t
   use iem_grid, only: grid_t
+  use iem_body, only: body_t
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_model, only: model_t
@@ -31,6 +32,8 @@ module iem_simulation
     integer :: rank = 0, n_ranks = 1
     type(config_t) :: cfg
     type(grid_t) :: grid
+    !> The body cut from the grid, with the numbering of its nodes and cells.
+    type(body_t) :: body
     type(local_lattice_t) :: lat
     type(halo_t) :: halo
     type(model_t) :: model
@@ -55,9 +58,9 @@ module iem_simulation
     integer, allocatable :: sp_probe(:), sp_local(:)
     integer(i8), allocatable :: sp_cell(:)
     real(wp), allocatable :: h_sp_e(:, :, :), h_sp_s(:, :, :)
-    !> Spring moduli (Eq, Hq, Gq): a spring's stress is its modulus times its normalised
-    !> stress (its strain, when elastic).
-    real(wp) :: moduli(3) = 0.0_wp
+    !> Spring moduli (Eq, Hq, Gq) of each spring probe's cell: a spring's stress is its
+    !> modulus times its normalised stress (its strain, when elastic).
+    real(wp), allocatable :: moduli(:, :)
     !> Nonlinear runs: the degree of nonlinearity of each counted cell, for frames.
     real(wp), allocatable :: cell_degree(:)
     !> Static runs: load factor, iterations and relative residual of each buffered sample.

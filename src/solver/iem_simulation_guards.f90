@@ -48,7 +48,7 @@ contains
     if (first == huge(1_i8)) then
       msg = 'the solution diverged (non-finite energy) at step '//itoa(k)//', t = '//rtoa(t)//' s'
     else
-      xy = this%grid%node_xy(first)
+      xy = this%body%node_xy(first)
       msg = 'the solution diverged: non-finite values at step '//itoa(k)//', t = '//rtoa(t)// &
             ' s, first at node '//itoa(first)//' (x = '//rtoa(xy(1))//', y = '//rtoa(xy(2))// &
             ' m) on rank '//itoa(owner)
@@ -59,7 +59,7 @@ contains
       if (norm2(good(3:4, l)) > big(1)) big = [norm2(good(3:4, l)), real(this%lat%gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, big, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
-    xy = this%grid%node_xy(int(big(2), i8))
+    xy = this%body%node_xy(int(big(2), i8))
     msg = msg//', with dt = '//rtoa(this%dt)//' s (stability limit '//rtoa(this%dt_limit)// &
           ' s); in the last good state (step '//itoa(k_good)//', written as the last '// &
           'frame) the fastest node was '//itoa(int(big(2), i8))//' (x = '//rtoa(xy(1))// &
@@ -88,7 +88,7 @@ contains
                                                        real(this%lat%gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, fast, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
-    xy = this%grid%node_xy(int(fast(2), i8))
+    xy = this%body%node_xy(int(fast(2), i8))
     where = 'fastest node '//itoa(int(fast(2), i8))//' (x = '//rtoa(xy(1))//', y = '// &
             rtoa(xy(2))//' m, speed '//rtoa(fast(1))//' m/s)'
     if (halt) then

@@ -51,12 +51,12 @@ contains
       do k = 1, size(p)
         names(k) = p(k)%name
         pxy(:, k) = [p(k)%x, p(k)%y]
-        nxy(:, k) = this%grid%node_xy(this%probe_gid(k))
+        nxy(:, k) = this%body%node_xy(this%probe_gid(k))
       end do
     end associate
     call this%out%create(trim(this%cfg%run%output_file), this%comm, this%cfg%run%overwrite, &
       iem_version, trim(this%cfg%input_file), this%cfg%input_text, trim(this%cfg%run%analysis), &
-      this%grid%n_nodes, this%grid%n_cells, this%lat%gid(1:this%lat%n_owned), names, pxy, &
+      this%body%n_nodes, this%body%n_cells, this%lat%gid(1:this%lat%n_owned), names, pxy, &
       this%probe_gid, nxy, stat, msg)
     if (stat /= 0) return
     this%output_open = .true.
@@ -66,7 +66,7 @@ contains
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
     do l = 1, this%lat%n_owned
-      coords(:, l) = this%grid%node_xy(this%lat%gid(l))
+      coords(:, l) = this%lat%xy(:, l)
     end do
     k = 0
     do l = 1, this%lat%n_cells
@@ -114,7 +114,7 @@ contains
     end do
     o = 4 + 4*np
     do p = 1, size(this%sp_probe)
-      if (this%sp_local(p) > 0) call spring_sample(this, this%sp_local(p), &
+      if (this%sp_local(p) > 0) call spring_sample(this, p, this%sp_local(p), &
         this%sample(o + 1:o + springs_per_cell), &
         this%sample(o + springs_per_cell + 1:o + 2*springs_per_cell))
       o = o + 2*springs_per_cell
@@ -177,11 +177,11 @@ contains
     end do
   end subroutine nonlinearity_degree
 
-  !> Strains and stresses of the 12 springs of local cell c at the current state (committed:
-  !> samples are taken at accepted states).
-  subroutine spring_sample(this, c, strain, stress)
+  !> Strains and stresses of the 12 springs of local cell c (that of spring probe p) at the
+  !> current state (committed: samples are taken at accepted states).
+  subroutine spring_sample(this, p, c, strain, stress)
     type(simulation_t), intent(in) :: this
-    integer, intent(in) :: c
+    integer, intent(in) :: p, c
     real(wp), intent(out) :: strain(springs_per_cell), stress(springs_per_cell)
     real(wp) :: u(2, 4), ep(4), sh(4)
     integer :: q, j
@@ -192,10 +192,10 @@ contains
     strain = spring_strains(ep, sh)
     do j = 1, springs_per_cell
       if (this%model%nonlinear) then
-        stress(j) = this%moduli(spring_kind(j))* &
+        stress(j) = this%moduli(spring_kind(j), p)* &
                     this%model%nl%state%stress(springs_per_cell*(c - 1) + j)
       else
-        stress(j) = this%moduli(spring_kind(j))*strain(j)
+        stress(j) = this%moduli(spring_kind(j), p)*strain(j)
       end if
     end do
   end subroutine spring_sample

@@ -12,8 +12,8 @@ contains
 
   !> Log the size of the run, its time step and its damping (rank 0).
   module procedure report_start
-    call log_info('iem '//iem_version//': '//itoa(this%grid%n_nodes)//' nodes, '// &
-      itoa(this%grid%n_cells)//' cells ('//itoa(this%grid%nx)//' x '//itoa(this%grid%ny)// &
+    call log_info('iem '//iem_version//': '//itoa(this%body%n_nodes)//' nodes, '// &
+      itoa(this%body%n_cells)//' cells ('//itoa(this%grid%nx)//' x '//itoa(this%grid%ny)// &
       '), '//itoa(this%n_ranks)//' ranks')
     call log_info('time step '//rtoa(this%dt)//' s = '// &
       rtoa(this%dt/this%dt_limit)//' of the '//integrator_name(this)//' limit '// &
@@ -43,7 +43,7 @@ contains
     mem = real(peak_rss_bytes(), wp)/1048576.0_wp
     call MPI_Allreduce(MPI_IN_PLACE, mem(1), 1, mpi_wp(), MPI_MAX, this%comm)
     call MPI_Allreduce(MPI_IN_PLACE, mem(2), 1, mpi_wp(), MPI_SUM, this%comm)
-    work = real(this%grid%n_nodes, wp)*real(this%n_steps, wp)
+    work = real(this%body%n_nodes, wp)*real(this%n_steps, wp)
     write(line, '(a,es10.3,a,es10.3,a,es10.3,a,es10.3,a)') 'performance: ', work, &
       ' node-steps in ', wall, ' s: ', work/wall, ' node-steps/s (', &
       work/wall/this%n_ranks, ' per rank)'

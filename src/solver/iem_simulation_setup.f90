@@ -24,7 +24,7 @@ contains
   !> Documented at its interface in iem_simulation.f90.
   module procedure simulation_setup
     integer(i8), allocatable :: n_selected(:)
-    integer :: k, np, nb, n_state, nsp, ci, cj, l, ierr
+    integer :: k, np, nb, n_state, nsp, ci, l, ierr, cij(2)
     integer(i8) :: most(1)
     real(wp) :: m_corner
     character(len=:), allocatable :: label
@@ -41,19 +41,19 @@ contains
     end if
     this%comm = comm
     ! volumetric locking of the paper's cell: its Poisson springs grow like 1/(1 - nu'^2)
-    if (cfg%geometry%cell == 'paper' .and. cfg%geometry%plane == 'strain' .and. &
-        cfg%materials(1)%poisson >= 0.45_wp) call log_warn("nu = "// &
-      rtoa(cfg%materials(1)%poisson)//" in plane strain: the paper's cell locks (too stiff "// &
-      "in bending: by 14% at nu = 0.45, 40% at 0.49, 86% at 0.499 with 8 cells through the "// &
-      "depth, docs/stability.md); cell = 'bending' does not")
+    do k = 1, size(cfg%materials)
+      if (cfg%geometry%cell == 'paper' .and. cfg%geometry%plane == 'strain' .and. &
+          cfg%materials(k)%poisson >= 0.45_wp) call log_warn("nu = "// &
+        rtoa(cfg%materials(k)%poisson)//" in plane strain: the paper's cell locks (too "// &
+        "stiff in bending: by 14% at nu = 0.45, 40% at 0.49, 86% at 0.499 with 8 cells "// &
+        "through the depth, docs/stability.md); cell = 'bending' does not")
+    end do
     call MPI_Comm_rank(comm, this%rank)
     call MPI_Comm_size(comm, this%n_ranks)
     associate(g => cfg%geometry)
       call this%grid%init(g%length, g%height, g%thickness, g%nx, g%ny)
     end associate
 
-    ! time step: cell-level bound of omega_max, damping included
-    m_corner = 0.25_wp*cfg%materials(1)%density*this%grid%lx*this%grid%ly*this%grid%thickness
     ! capped damping carries the filtered velocity as two more state values a node
     n_state = 4
     if (this%cfg%damping%kind == 'capped') n_state = 6
@@ -61,24 +61,32 @@ contains
     label = trim(cfg%input_file)//': '//this%grid%label()
     if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
       rtoa(cfg%geometry%cell_size)//')'
-    msg = grid_limit_message(this%grid, this%n_ranks, cfg%materials(1)%nonlinear, label)
+    msg = grid_limit_message(this%grid, this%n_ranks, any(cfg%materials(:)%nonlinear), label)
     stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
     call check_memory(this, n_state, label, stat, msg)
     if (stat /= 0) return
-    call decompose(this%grid, comm, this%lat, this%halo, stat, msg, n_state)
+    ! the body: every rank builds the same one, so every rank agrees on its errors
+    call this%body%init(cfg, this%grid, stat, msg)
+    if (stat /= 0) then
+      msg = trim(cfg%input_file)//': '//msg
+      return
+    end if
+    call report_pieces(this, stat, msg)
+    if (stat /= 0) return
+    call decompose(this%body, comm, this%lat, this%halo, stat, msg, n_state)
     if (stat /= 0) return
     ! the same limits for the cells and nodes the ranks hold now: the largest over them
     most = 12_i8*this%lat%n_cells
     call MPI_Allreduce(MPI_IN_PLACE, most, 1, MPI_INTEGER8, MPI_MAX, comm)
-    if (cfg%materials(1)%nonlinear .and. most(1) > max_springs_per_rank) then
+    if (any(cfg%materials(:)%nonlinear) .and. most(1) > max_springs_per_rank) then
       msg = springs_limit_message(label, most(1), this%grid%n_cells)
     end if
     stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
     nb = size(cfg%bcs)
     allocate(n_selected(nb + size(cfg%loads)))
-    call this%model%init(this%cfg, this%grid, this%lat, n_selected, guard)
+    call this%model%init(this%cfg, this%body, this%lat, n_selected, guard)
     call guard%agree(comm, label, stat, msg)
     if (stat /= 0) return
     call MPI_Allreduce(MPI_IN_PLACE, n_selected, size(n_selected), MPI_INTEGER8, MPI_SUM, comm)
@@ -96,7 +104,13 @@ contains
         return
       end if
     end do
-    this%omega_max = cell_omega_max(this%model%k, m_corner)
+    ! time step: cell-level bound of omega_max (the largest over the materials), damping
+    ! included
+    this%omega_max = 0.0_wp
+    do k = 1, size(cfg%materials)
+      m_corner = 0.25_wp*cfg%materials(k)%density*this%grid%lx*this%grid%ly*this%grid%thickness
+      this%omega_max = max(this%omega_max, cell_omega_max(this%model%ks(k), m_corner))
+    end do
     if (this%static) then
       ! load steps along the pseudo-time of the load path; dt is one load step's length
       call this%relax%init(this%model, this%lat, comm, cfg%static, cfg%run%t_end, guard)
@@ -154,23 +168,30 @@ contains
     np = size(cfg%probes)
     allocate(this%probe_gid(np), this%probe_local(np))
     do k = 1, np
-      this%probe_gid(k) = this%grid%nearest_node(cfg%probes(k)%x, cfg%probes(k)%y)
+      this%probe_gid(k) = this%body%nearest_node(cfg%probes(k)%x, cfg%probes(k)%y)
       this%probe_local(k) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k), 1)
     end do
 
     ! spring probes: the cell that holds the point (the last cell on the far edges)
-    this%moduli = spring_moduli(cfg%materials(1)%young, cfg%materials(1)%poisson, &
-                                cfg%geometry%plane == 'strain')
     nsp = count(cfg%probes(:)%springs)
-    allocate(this%sp_probe(nsp), this%sp_local(nsp), this%sp_cell(nsp))
+    allocate(this%sp_probe(nsp), this%sp_local(nsp), this%sp_cell(nsp), this%moduli(3, nsp))
     nsp = 0
     do k = 1, np
       if (.not. cfg%probes(k)%springs) cycle
       nsp = nsp + 1
       this%sp_probe(nsp) = k
-      ci = min(max(int(cfg%probes(k)%x/this%grid%lx), 0), this%grid%nx - 1)
-      cj = min(max(int(cfg%probes(k)%y/this%grid%ly), 0), this%grid%ny - 1)
-      this%sp_cell(nsp) = int(ci, i8) + int(cj, i8)*this%grid%nx
+      this%sp_cell(nsp) = this%body%cell_at(cfg%probes(k)%x, cfg%probes(k)%y)
+      if (this%sp_cell(nsp) < 0) then
+        stat = 1
+        msg = trim(cfg%input_file)//': &probe #'//itoa(k)//" ('"//trim(cfg%probes(k)%name)// &
+              "'): springs = .true. at x, y = "//rtoa(cfg%probes(k)%x)//', '// &
+              rtoa(cfg%probes(k)%y)//': the cell there is not in the body (void)'
+        return
+      end if
+      cij = this%body%cell_ij(this%sp_cell(nsp))
+      ci = this%body%material(cij(1), cij(2))
+      this%moduli(:, nsp) = spring_moduli(cfg%materials(ci)%young, cfg%materials(ci)%poisson, &
+                                          cfg%geometry%plane == 'strain')
       this%sp_local(nsp) = 0
       do l = 1, this%lat%n_cells
         if (this%lat%cell_gid(l) == this%sp_cell(nsp) .and. this%lat%cell_counted(l)) &
@@ -212,13 +233,44 @@ contains
     mc%integrator = 'rk4'
     if (this%verlet) mc%integrator = 'verlet'
     if (this%static) mc%integrator = 'static'
-    mc%nonlinear = this%cfg%materials(1)%nonlinear
-    mc%depth = this%cfg%materials(1)%history_depth
+    mc%nonlinear = any(this%cfg%materials(:)%nonlinear)
+    mc%depth = maxval(this%cfg%materials(:)%history_depth)
     mc%idx_bytes = storage_size(1_metis_idx)/8
     need = memory_estimate(mc)
     call memory_check(this%comm, need, label, stat, msg, info)
     if (stat == 0) call log_info(info)
   end subroutine check_memory
+
+  !> Log a body in several pieces ('warn': a warning; 'allow': an info line) or refuse it
+  !> ('one': stat = 1, msg).
+  subroutine report_pieces(this, stat, msg)
+    type(simulation_t), intent(in) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: text
+    integer :: k, ij(2)
+    stat = 0
+    msg = ''
+    if (this%body%n_pieces <= 1) return
+    text = 'the body is in '//itoa(this%body%n_pieces)//' pieces (cells joined through '// &
+           'shared nodes); a cell of each but the largest:'
+    do k = 1, size(this%body%piece_cell)
+      if (this%body%piece_cell(k) < 0) exit
+      ij = this%body%cell_ij(this%body%piece_cell(k))
+      text = text//' ('//rtoa((ij(1) + 0.5_wp)*this%grid%lx)//', '// &
+             rtoa((ij(2) + 0.5_wp)*this%grid%ly)//')'
+    end do
+    select case (trim(this%cfg%geometry%pieces))
+    case ('one')
+      stat = 1
+      msg = trim(this%cfg%input_file)//": &geometry: pieces = 'one': "//text
+    case ('allow')
+      call log_info(text)
+    case default
+      call log_warn(text//"; a piece without supports floats free (pieces = 'allow' "// &
+                    "accepts this silently, 'one' refuses it)")
+    end select
+  end subroutine report_pieces
 
   !> Documented at its interface in iem_simulation.f90.
   module procedure initial_velocity
@@ -226,7 +278,7 @@ contains
     real(wp) :: xy(2)
     associate(ini => this%cfg%initial)
       do l = 1, this%lat%n_owned
-        xy = this%grid%node_xy(this%lat%gid(l)) - ini%center
+        xy = this%lat%xy(:, l) - ini%center
         this%st%y(3:4, l) = ini%velocity + ini%angular_velocity*[-xy(2), xy(1)]
         if (this%model%n_state == 6) this%st%y(5:6, l) = this%st%y(3:4, l)
       end do

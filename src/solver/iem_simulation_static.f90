@@ -17,8 +17,8 @@ contains
     character(len=200) :: line
 
     associate(s => this%cfg%static)
-      call log_info('iem '//iem_version//': '//itoa(this%grid%n_nodes)//' nodes, '// &
-        itoa(this%grid%n_cells)//' cells ('//itoa(this%grid%nx)//' x '//itoa(this%grid%ny)// &
+      call log_info('iem '//iem_version//': '//itoa(this%body%n_nodes)//' nodes, '// &
+        itoa(this%body%n_cells)//' cells ('//itoa(this%grid%nx)//' x '//itoa(this%grid%ny)// &
         '), '//itoa(this%n_ranks)//' ranks')
       call log_info('static analysis by dynamic relaxation: '//itoa(s%load_steps)// &
         ' load steps to t = '//rtoa(this%cfg%run%t_end)//', '//trim(s%method)// &

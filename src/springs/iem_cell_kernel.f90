@@ -83,9 +83,11 @@ contains
   !> paper's cell, one set per column of cell_nodes) the springs follow their Masing law from
   !> their committed state; with commit = .true. this state y is accepted: every spring's
   !> history moves to it. The energy is then the work done on the springs (stored plus
-  !> dissipated), and stiffness damping uses the initial (elastic) stiffness.
+  !> dissipated), and stiffness damping uses the initial (elastic) stiffness. With ks and
+  !> cell_mat (several materials), cell c follows the constants ks(cell_mat(c)) (and its
+  !> material's nonlinear law); k then gives only the geometry (lx, ly, il0), the same for all.
   pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
-                              nl, commit)
+                              nl, commit, ks, cell_mat)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: cell_nodes(:, :)
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
@@ -95,6 +97,8 @@ contains
     integer, intent(in), optional :: damp_row
     type(nonlinear_springs_t), intent(inout), optional :: nl
     logical, intent(in), optional :: commit
+    type(cell_constants_t), intent(in), optional :: ks(:)
+    integer, intent(in), optional :: cell_mat(:)
     real(wp) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4), px(chunk, 4), py(chunk, 4)
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
     integer :: c0, m, c, q, nc, node, row
@@ -138,7 +142,15 @@ contains
           end do
         end do
       end if
-      if (present(nl)) then
+      if (present(ks) .and. present(cell_mat)) then
+        if (present(nl)) then
+          call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
+                            pw, nl, c0, accept, ks, cell_mat(c0:c0 + m - 1))
+        else
+          call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
+                            pw, ks=ks, mat=cell_mat(c0:c0 + m - 1))
+        end if
+      else if (present(nl)) then
         call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, pw, &
                           nl, c0, accept)
       else
@@ -162,7 +174,7 @@ contains
   !> first), as branch-free loops the compiler vectorises: geometry and strain measures; the
   !> cell law; damping (only when damped); corner forces.
   pure subroutine chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, &
-                               en, pw, nl, c_first, accept)
+                               en, pw, nl, c_first, accept, ks, mat)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     logical, intent(in) :: damped, filtered
@@ -174,6 +186,9 @@ contains
     type(nonlinear_springs_t), intent(inout), optional :: nl
     integer, intent(in), optional :: c_first
     logical, intent(in), optional :: accept
+    !> Several materials: the constants of each and the material of each cell of the chunk.
+    type(cell_constants_t), intent(in), optional :: ks(:)
+    integer, intent(in), optional :: mat(:)
     ! per cell: unit edge vectors e, shear gradients a (d s/d a) and b (d s/d b), strains ep
     ! and shear measures s, generalised stresses g (edges) and t (corners), and the rates
     real(wp) :: ex(chunk, 4), ey(chunk, 4), ax(chunk, 4), ay(chunk, 4)
@@ -227,9 +242,13 @@ contains
       by(c, :) = [(e1y + s1*e4y)*i4, (e2y + s2*e1y)*i1, (e3y + s3*e2y)*i2, (e4y + s4*e3y)*i3]
     end do
     if (present(nl)) then
-      call nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en)
+      call nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat)
     else
-      call cell_law(k, m, ep, s, g, t)
+      if (present(ks)) then
+        call cell_law_mixed(ks, mat, m, ep, s, g, t)
+      else
+        call cell_law(k, m, ep, s, g, t)
+      end if
       do c = 1, m
         en(c) = 0.5_wp*sum(g(c, :)*ep(c, :) + t(c, :)*s(c, :))
       end do
@@ -237,7 +256,11 @@ contains
     pw(1:m) = 0.0_wp
     if (damped) then
       call strain_rates(vx, vy, d, r)
-      call cell_law(k, m, d, r, gd, td)
+      if (present(ks)) then
+        call cell_law_mixed(ks, mat, m, d, r, gd, td)
+      else
+        call cell_law(k, m, d, r, gd, td)
+      end if
       ! the damping power is f_damp . v: with filtered damping velocities, the strain rates of
       ! the velocities themselves are needed too
       if (filtered) call strain_rates(px, py, d, r)
@@ -300,16 +323,20 @@ contains
   !> with accept, the history moved there), the generalised stresses g = 2 ce psi_edge +
   !> 2 ch (psi_Poisson at both ends of the edge), t = 2 cg psi_shear, and the work done on the
   !> cell's springs up to this state (trapezoidal increments from the committed state).
-  pure subroutine nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en)
+  pure subroutine nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat)
     type(nonlinear_springs_t), intent(inout) :: nl
     integer, intent(in) :: c_first, m
     real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
     logical, intent(in) :: accept
     real(wp), intent(out) :: g(chunk, 4), t(chunk, 4), en(chunk)
+    !> Material of each cell of the chunk (absent: material 1).
+    integer, intent(in), optional :: mat(:)
     real(wp) :: e(springs_per_cell), psi(springs_per_cell), tan, dw, e_old, psi_old, er, x
-    integer :: c, j, i, kind
+    integer :: c, j, i, kind, mc
     logical :: fast
+    mc = 1
     do c = 1, m
+      if (present(mat)) mc = mat(c)
       e = spring_strains(ep(c, :), s(c, :))
       en(c) = 0.0_wp
       do j = 1, springs_per_cell
@@ -324,16 +351,16 @@ contains
           else if (st%count(i) == 0 .and. (st%dir(i) == 0 .or. &
                    real(st%dir(i), wp)*(e(j) - e_old) > 0.0_wp)) then
             ! fast path: a spring on its skeleton that keeps going the same way
-            er = merge(nl%er_pos(kind), nl%er_neg(kind), e(j) >= 0.0_wp)
+            er = merge(nl%er_pos(kind, mc), nl%er_neg(kind, mc), e(j) >= 0.0_wp)
             psi(j) = e(j)/(1.0_wp + abs(e(j))/er)
           else if (on_branch(st%count(i), st%dir(i), e(j), e_old, st%e_rev(:, i), &
-                             nl%er_pos(kind), nl%er_neg(kind))) then
+                             nl%er_pos(kind, mc), nl%er_neg(kind, mc))) then
             ! fast path: a spring that keeps going the same way on its current Masing branch,
             ! short of the point where that branch ends (as masing_trial would find)
             associate(n => st%count(i))
               x = 0.5_wp*(e(j) - st%e_rev(n, i))
               psi(j) = st%s_rev(n, i) + 2.0_wp*(x/(1.0_wp + abs(x)/ &
-                       (0.5_wp*(nl%er_pos(kind) + nl%er_neg(kind)))))
+                       (0.5_wp*(nl%er_pos(kind, mc) + nl%er_neg(kind, mc)))))
             end associate
           else
             fast = .false.
@@ -350,7 +377,7 @@ contains
                 st%e_max_neg(i) = min(st%e_max_neg(i), e(j))
               end if
             else
-              call masing_commit(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), &
+              call masing_commit(e(j), 1.0_wp, nl%er_pos(kind, mc), nl%er_neg(kind, mc), &
                                  st%strain(i), st%stress(i), st%dir(i), st%count(i), &
                                  st%e_rev(:, i), st%s_rev(:, i), st%e_max_pos(i), &
                                  st%e_max_neg(i))
@@ -358,11 +385,11 @@ contains
               psi(j) = st%stress(i)
             end if
           else if (.not. fast) then
-            call masing_trial(e(j), 1.0_wp, nl%er_pos(kind), nl%er_neg(kind), st%strain(i), &
-                              st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
+            call masing_trial(e(j), 1.0_wp, nl%er_pos(kind, mc), nl%er_neg(kind, mc), &
+                              st%strain(i), st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
                               st%s_rev(:, i), psi(j), tan)
           end if
-          dw = 0.5_wp*nl%c2(kind)*(psi_old + psi(j))*(e(j) - e_old)
+          dw = 0.5_wp*nl%c2(kind, mc)*(psi_old + psi(j))*(e(j) - e_old)
           if (accept) then
             nl%work(i) = nl%work(i) + dw
             en(c) = en(c) + nl%work(i)
@@ -371,8 +398,8 @@ contains
           end if
         end associate
       end do
-      g(c, :) = nl%c2(1)*psi(1:4) + nl%c2(2)*(psi(5:8) + cshift(psi(5:8), 1))
-      t(c, :) = nl%c2(3)*psi(9:12)
+      g(c, :) = nl%c2(1, mc)*psi(1:4) + nl%c2(2, mc)*(psi(5:8) + cshift(psi(5:8), 1))
+      t(c, :) = nl%c2(3, mc)*psi(9:12)
     end do
   end subroutine nonlinear_law
 
@@ -436,4 +463,24 @@ contains
       end do
     end if
   end subroutine cell_law
+
+  !> The elastic cell law on a chunk of cells of several materials: cell c follows the
+  !> constants ks(mat(c)) (the same arithmetic as cell_law, cell by cell).
+  pure subroutine cell_law_mixed(ks, mat, m, ep, s, g, t)
+    type(cell_constants_t), intent(in) :: ks(:)
+    integer, intent(in) :: mat(:), m
+    real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
+    real(wp), intent(out) :: g(chunk, 4), t(chunk, 4)
+    real(wp) :: e1(chunk, 4), s1(chunk, 4), g1(chunk, 4), t1(chunk, 4)
+    integer :: c
+    e1 = 0.0_wp
+    s1 = 0.0_wp
+    do c = 1, m
+      e1(1, :) = ep(c, :)
+      s1(1, :) = s(c, :)
+      call cell_law(ks(mat(c)), 1, e1, s1, g1, t1)
+      g(c, :) = g1(1, :)
+      t(c, :) = t1(1, :)
+    end do
+  end subroutine cell_law_mixed
 end module iem_cell_kernel

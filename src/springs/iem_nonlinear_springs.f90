@@ -20,12 +20,12 @@ module iem_nonlinear_springs
 
   !> The nonlinear springs of the local cells of one rank.
   type :: nonlinear_springs_t
-    !> Reference strains e_r = s_max / E_max per kind (edge, Poisson, shear), for a positive
-    !> (tension, or positive shear measure) and a negative strain.
-    real(wp) :: er_pos(3) = 0.0_wp, er_neg(3) = 0.0_wp
-    !> Twice the energy coefficient of each kind (2 ce, 2 ch, 2 cg): the spring's generalised
-    !> force is this times its normalised stress psi (stress / E_max, a strain).
-    real(wp) :: c2(3) = 0.0_wp
+    !> Reference strains e_r = s_max / E_max per kind (edge, Poisson, shear) and material, for
+    !> a positive (tension, or positive shear measure) and a negative strain: (3, materials).
+    real(wp), allocatable :: er_pos(:, :), er_neg(:, :)
+    !> Twice the energy coefficient of each kind (2 ce, 2 ch, 2 cg) and material: the spring's
+    !> generalised force is this times its normalised stress psi (stress / E_max, a strain).
+    real(wp), allocatable :: c2(:, :)
     !> History of every spring: spring j of local cell c is entry 12 (c - 1) + j; its stress
     !> is stored normalised by E_max.
     type(masing_state_t) :: state
@@ -33,6 +33,7 @@ module iem_nonlinear_springs
     real(wp), allocatable :: work(:)
   contains
     procedure :: init => nonlinear_springs_init
+    procedure :: set_law => nonlinear_springs_set_law
   end type nonlinear_springs_t
 
 contains
@@ -61,20 +62,28 @@ contains
   end subroutine reference_strains
 
   !> Allocate the virgin springs of n_cells cells, with the reference strains, the energy
-  !> coefficients (ce, ch, cg) and the stack depth of their history. Out of memory: noted
-  !> in guard (the springs are then incomplete), or the program stops without one.
-  subroutine nonlinear_springs_init(this, n_cells, er_pos, er_neg, coeffs, depth, guard)
+  !> coefficients (ce, ch, cg) of material 1 and the stack depth of their history; with
+  !> n_materials (default 1), set_law gives the others. Out of memory: noted in guard (the
+  !> springs are then incomplete), or the program stops without one.
+  subroutine nonlinear_springs_init(this, n_cells, er_pos, er_neg, coeffs, depth, guard, &
+                                    n_materials)
     class(nonlinear_springs_t), intent(inout) :: this
     integer, intent(in) :: n_cells, depth
     real(wp), intent(in) :: er_pos(3), er_neg(3), coeffs(3)
     type(alloc_guard_t), intent(inout), optional :: guard
+    integer, intent(in), optional :: n_materials
     type(alloc_guard_t) :: g
     integer(ip) :: st
-    integer :: ierr
+    integer :: ierr, nm
     real(wp) :: bytes
-    this%er_pos = er_pos
-    this%er_neg = er_neg
-    this%c2 = 2.0_wp*coeffs
+    nm = 1
+    if (present(n_materials)) nm = n_materials
+    if (allocated(this%er_pos)) deallocate(this%er_pos, this%er_neg, this%c2)
+    allocate(this%er_pos(3, nm), this%er_neg(3, nm), this%c2(3, nm))
+    this%er_pos = 0.0_wp
+    this%er_neg = 0.0_wp
+    this%c2 = 0.0_wp
+    call this%set_law(1, er_pos, er_neg, coeffs)
     bytes = real(springs_per_cell, wp)*n_cells*(48.0_wp + 16.0_wp*depth)
     call this%state%init(int(springs_per_cell*n_cells, ip), int(depth, ip), st)
     call g%note(int(st), 'the nonlinear springs of the rank', bytes)
@@ -89,6 +98,16 @@ contains
     end if
     this%work = 0.0_wp
   end subroutine nonlinear_springs_init
+
+  !> Set the reference strains and energy coefficients (ce, ch, cg) of material m.
+  pure subroutine nonlinear_springs_set_law(this, m, er_pos, er_neg, coeffs)
+    class(nonlinear_springs_t), intent(inout) :: this
+    integer, intent(in) :: m
+    real(wp), intent(in) :: er_pos(3), er_neg(3), coeffs(3)
+    this%er_pos(:, m) = er_pos
+    this%er_neg(:, m) = er_neg
+    this%c2(:, m) = 2.0_wp*coeffs
+  end subroutine nonlinear_springs_set_law
 
   !> The 12 spring strains of a cell from its edge strains ep(4) and corner shear measures
   !> s(4): edges, Poisson springs (corner q: edge q + edge q-1), shear springs.
