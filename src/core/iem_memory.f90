@@ -15,8 +15,8 @@ module iem_memory
 
   !> Bytes of the arrays every run holds, per local node or cell (the values behind the
   !> estimate; docs/benchmarks.md has the measured totals).
-  real(wp), parameter, public :: lattice_node_bytes = 8.0_wp   ! global id (int64)
-  real(wp), parameter, public :: lattice_cell_bytes = 16.0_wp  ! 4 corner nodes (int32)
+  real(wp), parameter, public :: lattice_node_bytes = 24.0_wp  ! global id (int64), x, y
+  real(wp), parameter, public :: lattice_cell_bytes = 29.0_wp  ! 4 corners, id, material, open edges
   real(wp), parameter, public :: model_node_bytes = 24.0_wp    ! lumped mass, summed forces (2)
   !> One (2, n) copy of u or v while a frame is written.
   real(wp), parameter, public :: frame_node_bytes = 16.0_wp
