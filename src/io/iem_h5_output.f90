@@ -91,9 +91,10 @@ module iem_h5_output
       character(len=:), allocatable, intent(out) :: msg
     end subroutine h5_output_create
 
-    !> Writes /mesh and its attributes collectively, each rank its owned nodes and its cells.
+    !> Writes /mesh and its attributes collectively, each rank its owned nodes and its cells
+    !> (with material, the cells' material numbers, 1-based, and the materials' names).
     module subroutine h5_output_write_mesh(this, coords, mass, cells, cell_gids, nx, ny, lx, ly, &
-        thickness, plane, stat, msg)
+        thickness, plane, stat, msg, material, material_names)
       class(h5_output_t), intent(inout) :: this
       real(wp), intent(in) :: coords(:, :), mass(:), lx, ly, thickness
       integer(i8), intent(in) :: cells(:, :), cell_gids(:)
@@ -101,6 +102,8 @@ module iem_h5_output
       character(len=*), intent(in) :: plane
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
+      integer(i8), intent(in), optional :: material(:)
+      character(len=*), intent(in), optional :: material_names
     end subroutine h5_output_write_mesh
 
     !> Adds the next frame group (u, v of the owned nodes) and appends to /frames/time, step.

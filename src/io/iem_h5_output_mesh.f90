@@ -104,6 +104,12 @@ contains
       did = -1
       if (failed(this%path, ierr, 'h5dclose_f', '/mesh/mass', stat, msg)) exit work
 
+      if (present(material)) then
+        call write_cell_ints(gid, 'material', material)
+        if (stat /= 0) exit work
+        if (present(material_names)) call put_attr(this%path, gid, '/mesh', 'material_names', &
+                                                   stat, msg, text=material_names)
+      end if
       call put_attr(this%path, gid, '/mesh', 'nx', stat, msg, ival=nx)
       call put_attr(this%path, gid, '/mesh', 'ny', stat, msg, ival=ny)
       call put_attr(this%path, gid, '/mesh', 'lx', stat, msg, rval=lx)
@@ -132,6 +138,34 @@ contains
       msg = tmp_msg
     end if
     call write_sidecar(this, stat, msg)
+
+  contains
+
+    !> /mesh/<name>: one integer per cell, in the cells' selection.
+    subroutine write_cell_ints(g, name, v)
+      integer(HID_T), intent(in) :: g
+      character(len=*), intent(in) :: name
+      integer(i8), intent(in) :: v(:)
+      integer(HID_T) :: fs, ms, d
+      integer :: e
+      fs = -1
+      ms = -1
+      d = -1
+      one: block
+        call h5screate_simple_f(1, [int(this%n_cells, HSIZE_T)], fs, e)
+        if (failed(this%path, e, 'h5screate_simple_f', '/mesh/'//name, stat, msg)) exit one
+        call select_runs(this%path, fs, '/mesh/'//name, 0, cstart, clen, stat, msg)
+        call make_mem_space(this%path, 0, n_my_cells, '/mesh/'//name, ms, stat, msg)
+        if (stat /= 0) exit one
+        call h5dcreate_f(g, name, H5T_STD_I64LE, fs, d, e, this%dcpl_id)
+        if (failed(this%path, e, 'h5dcreate_f', '/mesh/'//name, stat, msg)) exit one
+        call h5dwrite_f(d, this%int_mtype, v, shape(v, HSIZE_T), e, ms, fs, this%xfer_id)
+        if (failed(this%path, e, 'h5dwrite_f', '/mesh/'//name, stat, msg)) exit one
+      end block one
+      if (d >= 0) call h5dclose_f(d, e)
+      call close_space(this%path, fs, tmp_stat, tmp_msg)
+      call close_space(this%path, ms, tmp_stat, tmp_msg)
+    end subroutine write_cell_ints
   end procedure h5_output_write_mesh
 
   !> Empty if the arguments of write_mesh are consistent on this rank, else what is wrong.

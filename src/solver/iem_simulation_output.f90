@@ -40,8 +40,9 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     character(len=64), allocatable :: names(:), sp_names(:)
     real(wp), allocatable :: pxy(:, :), nxy(:, :), sp_xy(:, :)
-    integer(i8), allocatable :: cells(:, :), cell_gids(:)
+    integer(i8), allocatable :: cells(:, :), cell_gids(:), material(:)
     real(wp), allocatable :: coords(:, :)
+    character(len=:), allocatable :: material_names
     integer :: k, l, nc, ierr
     integer(i8) :: nodes(4)
     type(alloc_guard_t) :: guard
@@ -61,8 +62,8 @@ contains
     if (stat /= 0) return
     this%output_open = .true.
     nc = this%lat%n_counted()
-    allocate(coords(2, this%lat%n_owned), cells(4, nc), cell_gids(nc), stat=ierr)
-    call guard%note(ierr, 'the mesh output buffers', 16.0_wp*this%lat%n_owned + 40.0_wp*nc)
+    allocate(coords(2, this%lat%n_owned), cells(4, nc), cell_gids(nc), material(nc), stat=ierr)
+    call guard%note(ierr, 'the mesh output buffers', 16.0_wp*this%lat%n_owned + 48.0_wp*nc)
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
     do l = 1, this%lat%n_owned
@@ -75,10 +76,16 @@ contains
       nodes = this%lat%gid(this%lat%cell_nodes(:, l))
       cells(:, k) = nodes
       cell_gids(k) = this%lat%cell_gid(l)
+      material(k) = this%lat%cell_mat(l)
+    end do
+    material_names = ''
+    do k = 1, size(this%cfg%materials)
+      if (k > 1) material_names = material_names//','
+      material_names = material_names//trim(this%cfg%materials(k)%name)
     end do
     call this%out%write_mesh(coords, this%model%mass, cells, cell_gids, this%grid%nx, &
       this%grid%ny, this%grid%lx, this%grid%ly, this%grid%thickness, &
-      trim(this%cfg%geometry%plane), stat, msg)
+      trim(this%cfg%geometry%plane), stat, msg, material, material_names)
     if (stat /= 0) return
     if (size(this%sp_probe) > 0) then
       allocate(sp_names(size(this%sp_probe)), sp_xy(2, size(this%sp_probe)))
