@@ -2,6 +2,7 @@
 !> drawn in a paint program (issue 10, first part): one pixel a cell, the first row the top
 !> of the body. A malformed file gives a message naming what is wrong, never a guess.
 module iem_image
+  use iem_kinds, only: i8
   use iem_strings, only: itoa
   implicit none
   private
@@ -27,7 +28,8 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     character(len=:), allocatable :: bytes
     character(len=256) :: iom
-    integer :: unit, ios, n
+    integer :: unit, ios
+    integer(i8) :: n
     stat = 1
     open(newunit=unit, file=path, access='stream', form='unformatted', status='old', &
          action='read', iostat=ios, iomsg=iom)
@@ -36,7 +38,8 @@ contains
       return
     end if
     inquire(unit=unit, size=n)
-    if (n < 0 .or. n > 2*max_image_pixels + 64) then
+    ! a P5 raster of 16-bit pixels holds 2 bytes a pixel; the header is short
+    if (n < 0 .or. n > 2_i8*max_image_pixels + 65536_i8) then
       msg = "image '"//path//"': its size cannot be read or is beyond any image iem takes"
       close(unit)
       return

@@ -1,31 +1,43 @@
 !> Readers of the groups that describe the body: &geometry, &material and &damping.
 module iem_input_body
   use iem_kinds, only: wp
-  use iem_constants, only: unset_real
+  use iem_constants, only: unset_real, unset_int
   use iem_strings, only: itoa, rtoa, lower
-  use iem_config, only: config_t
+  use iem_config, only: config_t, material_config_t, name_len, path_len
   use iem_namelist_text, only: nml_text_t, line_len
   use iem_input_checks, only: bad, check_keys, read_error, check_reals, check_logicals, &
                               check_strings, given
   implicit none
   private
-  public :: read_geometry, read_material, read_damping
+  public :: read_geometry, read_material, read_damping, max_levels
+
+  !> Most grey levels of an image cell map (image_levels, image_materials).
+  integer, parameter :: max_levels = 256
+  !> What a name of image_materials holds when the input does not give it.
+  character(len=*), parameter :: unset_name = achar(0)//'unset'
 
 contains
 
   ! ----------------------------------------------------------------------------- &geometry
-  subroutine parse_geometry(chunk, cfg, ios, iomsg)
+  subroutine parse_geometry(chunk, cfg, ios, iomsg, gaps)
     character(len=line_len), intent(in) :: chunk(:)
     type(config_t), intent(inout) :: cfg
     integer, intent(out) :: ios
     character(len=:), allocatable, intent(out) :: iomsg
+    !> Whether image_levels or image_materials has an empty value before a given one.
+    logical, intent(out), optional :: gaps
     real(wp) :: length, height, thickness, cell_size
-    integer :: nx, ny
-    character(len=8) :: plane, cell
+    integer :: nx, ny, image_levels(max_levels), nl, nm
+    character(len=8) :: plane, cell, pieces
+    character(len=name_len) :: background, image_materials(max_levels)
+    character(len=path_len) :: image
     character(len=256) :: m
-    namelist /geometry/ length, height, thickness, nx, ny, cell_size, plane, cell
+    namelist /geometry/ length, height, thickness, nx, ny, cell_size, plane, cell, &
+      background, image, image_levels, image_materials, pieces
     length = unset_real; height = unset_real; thickness = cfg%geometry%thickness
     nx = 0; ny = 0; cell_size = 0.0_wp; plane = cfg%geometry%plane; cell = cfg%geometry%cell
+    background = ''; image = ''; image_levels = unset_int; image_materials = unset_name
+    pieces = cfg%geometry%pieces
     m = ''
     read(chunk, nml=geometry, iostat=ios, iomsg=m)
     iomsg = trim(m)
@@ -33,6 +45,23 @@ contains
     cfg%geometry%thickness = thickness; cfg%geometry%nx = nx; cfg%geometry%ny = ny
     cfg%geometry%cell_size = cell_size; cfg%geometry%plane = lower(plane)
     cfg%geometry%cell = lower(cell)
+    cfg%geometry%background = background; cfg%geometry%image = image
+    cfg%geometry%pieces = lower(pieces)
+    ! the values given are the leading ones; a null value (',,') before a given one is a gap
+    nl = leading(image_levels /= unset_int)
+    nm = leading(image_materials /= unset_name)
+    cfg%geometry%image_levels = image_levels(1:nl)
+    cfg%geometry%image_materials = image_materials(1:nm)
+    allocate(cfg%geometry%image_material_ids(nm))
+    cfg%geometry%image_material_ids = 0
+    if (present(gaps)) gaps = count(image_levels /= unset_int) /= nl .or. &
+                              count(image_materials /= unset_name) /= nm
+  contains
+    pure integer function leading(set) result(n)
+      logical, intent(in) :: set(:)
+      n = findloc(set, .false., 1) - 1
+      if (n < 0) n = size(set)
+    end function leading
   end subroutine parse_geometry
 
   !> Check, parse and validate group g (&geometry) of the input into the configuration.
@@ -46,17 +75,22 @@ contains
     character(len=:), allocatable :: iomsg
     character(len=*), parameter :: label = '&geometry'
     real(wp) :: nn
-    call check_keys(text, g, [character(len=12) :: 'length', 'height', 'thickness', 'nx', 'ny', &
-      'cell_size', 'plane', 'cell'], label, stat, msg)
+    logical :: gaps, has_image
+    call check_keys(text, g, [character(len=15) :: 'length', 'height', 'thickness', 'nx', 'ny', &
+      'cell_size', 'plane', 'cell', 'background', 'image', 'image_levels', 'image_materials', &
+      'pieces'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
-    call parse_geometry(chunk, cfg, stat, iomsg)
+    call parse_geometry(chunk, cfg, stat, iomsg, gaps)
     if (stat /= 0) then
       call read_error(text, g, label, iomsg, chunk, try_geometry, msg)
       stat = 1
       return
     end if
-    call check_strings(text, g, label, [character(len=5) :: 'plane', 'cell'], [8, 8], stat, msg)
+    call check_strings(text, g, label, [character(len=15) :: 'plane', 'cell', 'background', &
+      'image', 'image_materials', 'pieces'], [8, 8, name_len, path_len, name_len, 8], stat, msg)
+    if (stat /= 0) return
+    call check_fill(text, g, label, cfg, gaps, stat, msg)
     if (stat /= 0) return
     if (given(text, g, 'cell_size') .and. .not. (cfg%geometry%cell_size > 0.0_wp)) then
       call bad(label, 'cell_size', rtoa(cfg%geometry%cell_size), 'must be > 0 [m] (or give '// &
@@ -67,6 +101,7 @@ contains
       'cell_size'], [cfg%geometry%length, cfg%geometry%height, cfg%geometry%thickness, &
       cfg%geometry%cell_size], stat, msg)
     if (stat /= 0) return
+    has_image = len_trim(cfg%geometry%image) > 0
     associate(o => cfg%geometry)
       if (o%length == unset_real) then
         call bad(label, 'length', '(not given)', 'is required [m]', stat, msg)
@@ -89,10 +124,10 @@ contains
                  stat, msg)
       else if (.not. (o%cell_size >= 0.0_wp)) then
         call bad(label, 'cell_size', rtoa(o%cell_size), 'must be > 0 [m]', stat, msg)
-      else if (o%cell_size == 0.0_wp .and. o%nx < 1) then
-        call bad(label, 'nx', itoa(o%nx), 'must be >= 1 (or give cell_size)', stat, msg)
-      else if (o%cell_size == 0.0_wp .and. o%ny < 1) then
-        call bad(label, 'ny', itoa(o%ny), 'must be >= 1 (or give cell_size)', stat, msg)
+      else if (o%cell_size == 0.0_wp .and. o%nx < 1 .and. .not. (has_image .and. o%nx == 0)) then
+        call bad(label, 'nx', itoa(o%nx), 'must be >= 1 (or give cell_size or image)', stat, msg)
+      else if (o%cell_size == 0.0_wp .and. o%ny < 1 .and. .not. (has_image .and. o%ny == 0)) then
+        call bad(label, 'ny', itoa(o%ny), 'must be >= 1 (or give cell_size or image)', stat, msg)
       end if
       if (stat /= 0) return
       if (o%cell_size > 0.0_wp) then
@@ -106,8 +141,9 @@ contains
         o%nx = max(1, nint(o%length/o%cell_size))
         o%ny = max(1, nint(o%height/o%cell_size))
       end if
+      ! with an image the grid is known once the image is read (iem_input_image)
       nn = (real(o%nx, wp) + 1.0_wp)*(real(o%ny, wp) + 1.0_wp)
-      if (nn > 2.0e9_wp) then
+      if (nn > 2.0e9_wp .and. .not. has_image) then
         call bad(label, 'nx*ny', itoa(o%nx)//'*'//itoa(o%ny), &
                  'gives more than 2e9 nodes', stat, msg)
       end if
@@ -121,61 +157,128 @@ contains
     call parse_geometry(part, c, ios, m)
   end function try_geometry
 
-  ! ----------------------------------------------------------------------------- &material
-  subroutine parse_material(chunk, cfg, ios, iomsg)
-    character(len=line_len), intent(in) :: chunk(:)
+  !> Check what fills the grid: pieces, and the image variables (only with image; levels
+  !> >= 0 and distinct, one material each). Names are resolved in iem_input_scene, the image
+  !> file itself is read in iem_input_image.
+  subroutine check_fill(text, g, label, cfg, gaps, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: label
     type(config_t), intent(inout) :: cfg
+    logical, intent(in) :: gaps
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer :: k, j
+    stat = 0
+    msg = ''
+    associate(o => cfg%geometry)
+      if (o%pieces /= 'warn' .and. o%pieces /= 'allow' .and. o%pieces /= 'one') then
+        call bad(label, 'pieces', "'"//trim(o%pieces)//"'", "must be 'warn', 'allow' or 'one'", &
+                 stat, msg)
+        return
+      end if
+      if (len_trim(o%image) == 0) then
+        if (given(text, g, 'image_levels')) then
+          call bad(label, 'image_levels', '', 'applies only with image = a PBM/PGM file', &
+                   stat, msg)
+        else if (given(text, g, 'image_materials')) then
+          call bad(label, 'image_materials', '', 'applies only with image = a PBM/PGM file', &
+                   stat, msg)
+        else if (given(text, g, 'image')) then
+          call bad(label, 'image', "''", 'must name a PBM/PGM file (or leave image out)', &
+                   stat, msg)
+        end if
+        return
+      end if
+      if (gaps) then
+        call bad(label, 'image_levels, image_materials', '', 'have an empty value between '// &
+                 'two given ones', stat, msg)
+      else if (size(o%image_levels) == 0) then
+        call bad(label, 'image_levels', '(not given)', 'is required with image: the grey '// &
+                 'levels of the image (PBM: 0 white, 1 black)', stat, msg)
+      else if (size(o%image_materials) /= size(o%image_levels)) then
+        call bad(label, 'image_materials', itoa(size(o%image_materials))//' names', &
+                 'must give one material (or ''void'') for each of the '// &
+                 itoa(size(o%image_levels))//' image_levels', stat, msg)
+      else
+        do k = 1, size(o%image_levels)
+          if (o%image_levels(k) < 0) then
+            call bad(label, 'image_levels', itoa(o%image_levels(k)), 'must be >= 0 (a grey '// &
+                     'level of the image)', stat, msg)
+            return
+          end if
+          do j = 1, k - 1
+            if (o%image_levels(j) == o%image_levels(k)) then
+              call bad(label, 'image_levels', itoa(o%image_levels(k)), 'is given twice '// &
+                       '(values '//itoa(j)//' and '//itoa(k)//')', stat, msg)
+              return
+            end if
+          end do
+        end do
+      end if
+    end associate
+  end subroutine check_fill
+
+  ! ----------------------------------------------------------------------------- &material
+  subroutine parse_material(chunk, mat, ios, iomsg)
+    character(len=line_len), intent(in) :: chunk(:)
+    type(material_config_t), intent(inout) :: mat
     integer, intent(out) :: ios
     character(len=:), allocatable, intent(out) :: iomsg
+    character(len=name_len) :: name
     real(wp) :: e, nu, density, tensile_strength, compressive_strength, shear_strength
     logical :: nonlinear
     integer :: history_depth
     character(len=256) :: m
-    namelist /material/ e, nu, density, nonlinear, tensile_strength, compressive_strength, &
-      shear_strength, history_depth
-    e = unset_real; nu = unset_real; density = unset_real
-    nonlinear = cfg%materials(1)%nonlinear; history_depth = cfg%materials(1)%history_depth
+    namelist /material/ name, e, nu, density, nonlinear, tensile_strength, &
+      compressive_strength, shear_strength, history_depth
+    name = ''; e = unset_real; nu = unset_real; density = unset_real
+    nonlinear = mat%nonlinear; history_depth = mat%history_depth
     tensile_strength = unset_real; compressive_strength = unset_real
     shear_strength = unset_real
     m = ''
     read(chunk, nml=material, iostat=ios, iomsg=m)
     iomsg = trim(m)
-    cfg%materials(1)%young = e; cfg%materials(1)%poisson = nu; cfg%materials(1)%density = density
-    cfg%materials(1)%nonlinear = nonlinear; cfg%materials(1)%history_depth = history_depth
-    cfg%materials(1)%tensile_strength = tensile_strength
-    cfg%materials(1)%compressive_strength = compressive_strength
-    cfg%materials(1)%shear_strength = shear_strength
+    mat%name = name
+    mat%young = e; mat%poisson = nu; mat%density = density
+    mat%nonlinear = nonlinear; mat%history_depth = history_depth
+    mat%tensile_strength = tensile_strength
+    mat%compressive_strength = compressive_strength
+    mat%shear_strength = shear_strength
   end subroutine parse_material
 
-  !> Check, parse and validate group g (&material) of the input into the configuration.
-  subroutine read_material(text, g, cfg, stat, msg)
+  !> Check, parse and validate group g (one &material, called label in messages) into mat;
+  !> the name is checked against the other materials later (iem_input_scene).
+  subroutine read_material(text, g, label, mat, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
-    type(config_t), intent(inout) :: cfg
+    character(len=*), intent(in) :: label
+    type(material_config_t), intent(inout) :: mat
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     character(len=line_len), allocatable :: chunk(:)
     character(len=:), allocatable :: iomsg
-    character(len=*), parameter :: label = '&material'
-    call check_keys(text, g, [character(len=20) :: 'e', 'nu', 'density', 'nonlinear', &
+    call check_keys(text, g, [character(len=20) :: 'name', 'e', 'nu', 'density', 'nonlinear', &
       'tensile_strength', 'compressive_strength', 'shear_strength', 'history_depth'], label, &
       stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
-    call parse_material(chunk, cfg, stat, iomsg)
+    call parse_material(chunk, mat, stat, iomsg)
     if (stat /= 0) then
       call read_error(text, g, label, iomsg, chunk, try_material, msg)
       stat = 1
       return
     end if
-    associate(m => cfg%materials(1))
+    call check_strings(text, g, label, ['name'], [name_len], stat, msg)
+    if (stat /= 0) return
+    associate(m => mat)
       call check_reals(text, g, label, [character(len=20) :: 'e', 'nu', 'density', &
         'tensile_strength', 'compressive_strength', 'shear_strength'], [m%young, m%poisson, &
         m%density, m%tensile_strength, m%compressive_strength, m%shear_strength], stat, msg)
     end associate
     if (stat == 0) call check_logicals(text, g, label, ['nonlinear'], stat, msg)
     if (stat /= 0) return
-    associate(m => cfg%materials(1))
+    associate(m => mat)
       if (m%young == unset_real) then
         call bad(label, 'E', '(not given)', "is required: Young's modulus [Pa]", stat, msg)
       else if (.not. (m%young > 0.0_wp)) then
@@ -222,7 +325,7 @@ contains
 
   integer function try_material(part) result(ios)
     character(len=line_len), intent(in) :: part(:)
-    type(config_t) :: c
+    type(material_config_t) :: c
     character(len=:), allocatable :: m
     call parse_material(part, c, ios, m)
   end function try_material

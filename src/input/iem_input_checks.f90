@@ -209,15 +209,22 @@ contains
     character(len=*), intent(in) :: label, where, time_function
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
+    ! each node-set variable and the where it belongs to
+    character(len=*), parameter :: keys(*) = [character(len=8) :: 'box', 'point', 'segment', &
+      'center', 'radius', 'shape', 'normal']
+    character(len=*), parameter :: wheres(*) = [character(len=8) :: 'box', 'point', &
+      'segment', 'circle', 'circle', 'shape', 'face']
+    integer :: k
     stat = 0
     msg = ''
-    if (given(text, g, 'box') .and. trim(where) /= 'box') then
-      call bad(label, 'box', '', "applies only to where = 'box' (where = '"//trim(where)// &
-               "')", stat, msg)
-    else if (given(text, g, 'point') .and. trim(where) /= 'point') then
-      call bad(label, 'point', '', "applies only to where = 'point' (where = '"//trim(where)// &
-               "')", stat, msg)
-    else if (given(text, g, 't_ramp') .and. trim(time_function) /= 'ramp') then
+    do k = 1, size(keys)
+      if (given(text, g, trim(keys(k))) .and. trim(where) /= trim(wheres(k))) then
+        call bad(label, trim(keys(k)), '', "applies only to where = '"//trim(wheres(k))// &
+                 "' (where = '"//trim(where)//"')", stat, msg)
+        return
+      end if
+    end do
+    if (given(text, g, 't_ramp') .and. trim(time_function) /= 'ramp') then
       call bad(label, 't_ramp', '', "applies only to time_function = 'ramp' (time_function = '"// &
                trim(time_function)//"')", stat, msg)
     end if
@@ -249,23 +256,31 @@ contains
     end associate
   end subroutine check_logicals
 
-  !> Validate a node-set description (named edge, box, point or all).
-  subroutine check_set(s, label, edge_only, stat, msg)
+  !> Validate a node-set description (docs/input.md, "Node sets"); edge: the set of an edge
+  !> load (a traction on the boundary edges between its nodes), which refuses 'point' and
+  !> 'all'. A 'face' normal is scaled to unit length; a 'shape' name is resolved later.
+  subroutine check_set(s, label, edge, stat, msg)
     type(node_set_spec_t), intent(inout) :: s
     character(len=*), intent(in) :: label
-    logical, intent(in) :: edge_only
+    logical, intent(in) :: edge
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
+    character(len=*), parameter :: all_wheres = "'left', 'right', 'bottom', 'top', 'box', "// &
+      "'point', 'segment', 'circle', 'boundary', 'shape', 'face' or 'all'"
+    real(wp) :: n
     stat = 0
     msg = ''
+    if (edge .and. (s%where == 'point' .or. s%where == 'all')) then
+      call bad(label, 'where', "'"//trim(s%where)//"'", "cannot carry a traction (kind = "// &
+               "'edge' acts on the boundary edges between nodes of the set): use another "// &
+               "where, or kind = 'nodal'", stat, msg)
+      return
+    end if
     select case (trim(s%where))
-    case ('left', 'right', 'bottom', 'top')
+    case ('left', 'right', 'bottom', 'top', 'all', 'boundary')
       continue
     case ('box')
-      if (edge_only) then
-        call bad(label, 'where', "'box'", "an edge load needs 'left', 'right', 'bottom' or "// &
-                 "'top'", stat, msg)
-      else if (any(s%box == unset_real)) then
+      if (any(s%box == unset_real)) then
         call bad(label, 'box', '(not given)', "is required with where = 'box': "// &
                  'xmin, xmax, ymin, ymax [m]', stat, msg)
       else if (s%box(1) > s%box(2) .or. s%box(3) > s%box(4)) then
@@ -273,22 +288,49 @@ contains
                  ', '//rtoa(s%box(4)), 'needs xmin <= xmax and ymin <= ymax', stat, msg)
       end if
     case ('point')
-      if (edge_only) then
-        call bad(label, 'where', "'point'", "an edge load needs 'left', 'right', 'bottom' or "// &
-                 "'top'", stat, msg)
-      else if (any(s%point == unset_real)) then
+      if (any(s%point == unset_real)) then
         call bad(label, 'point', '(not given)', "is required with where = 'point': x, y [m]", &
                  stat, msg)
       end if
-    case ('all')
-      if (edge_only) call bad(label, 'where', "'all'", &
-        "an edge load needs 'left', 'right', 'bottom' or 'top'", stat, msg)
+    case ('segment')
+      if (any(s%segment == unset_real)) then
+        call bad(label, 'segment', '(not given)', "is required with where = 'segment': "// &
+                 'x0, y0, x1, y1 [m]', stat, msg)
+      else if (s%segment(1) == s%segment(3) .and. s%segment(2) == s%segment(4)) then
+        call bad(label, 'segment', rtoa(s%segment(1))//', '//rtoa(s%segment(2))//', '// &
+                 rtoa(s%segment(3))//', '//rtoa(s%segment(4)), "has both ends at one "// &
+                 "point (use where = 'point')", stat, msg)
+      end if
+    case ('circle')
+      if (any(s%center == unset_real)) then
+        call bad(label, 'center', '(not given)', "is required with where = 'circle': x, y [m]", &
+                 stat, msg)
+      else if (s%radius == unset_real) then
+        call bad(label, 'radius', '(not given)', "is required with where = 'circle' [m]", &
+                 stat, msg)
+      else if (.not. (s%radius > 0.0_wp)) then
+        call bad(label, 'radius', rtoa(s%radius), 'must be > 0 [m]', stat, msg)
+      end if
+    case ('shape')
+      if (len_trim(s%shape) == 0) call bad(label, 'shape', '(not given)', "is required "// &
+        "with where = 'shape': the name of a &shape", stat, msg)
+    case ('face')
+      if (any(s%normal == unset_real)) then
+        call bad(label, 'normal', '(not given)', "is required with where = 'face': nx, ny", &
+                 stat, msg)
+      else
+        n = hypot(s%normal(1), s%normal(2))
+        if (.not. (n > 0.0_wp)) then
+          call bad(label, 'normal', rtoa(s%normal(1))//', '//rtoa(s%normal(2)), &
+                   'must be a nonzero vector', stat, msg)
+        else
+          s%normal = s%normal/n
+        end if
+      end if
     case ('')
-      call bad(label, 'where', "''", "is required: 'left', 'right', 'bottom', 'top', 'box', "// &
-               "'point' or 'all'", stat, msg)
+      call bad(label, 'where', "''", 'is required: '//all_wheres, stat, msg)
     case default
-      call bad(label, 'where', "'"//trim(s%where)//"'", "must be 'left', 'right', 'bottom', "// &
-               "'top', 'box', 'point' or 'all'", stat, msg)
+      call bad(label, 'where', "'"//trim(s%where)//"'", 'must be '//all_wheres, stat, msg)
     end select
   end subroutine check_set
 

@@ -1,8 +1,8 @@
 !> The file rules of a run, checked on rank 0 before anything is written: every file to be
 !> written (output, its .xmf sidecar, the checkpoint and its temporary) has a name the file
 !> system, MPI-IO and HDF5 can take, an existing writable folder, is a regular file or absent,
-!> and differs from every other file of the run (input and restart included) after links,
-!> '.' and '..' are resolved. docs/output.md, "Files", states the rules.
+!> and differs from every other file of the run (input, restart and the image of a cell map
+!> included) after links, '.' and '..' are resolved. docs/output.md, "Files", states the rules.
 module iem_input_files
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Bcast, MPI_INTEGER, MPI_CHARACTER
   use iem_config, only: config_t
@@ -13,7 +13,7 @@ module iem_input_files
   use iem_xdmf, only: xdmf_path_of
   implicit none
   private
-  public :: check_files, checkpoint_temp_of
+  public :: check_files, checkpoint_temp_of, bcast_message
 
 contains
 
@@ -43,7 +43,7 @@ contains
   subroutine check_on_root(cfg, msg)
     type(config_t), intent(in) :: cfg
     character(len=:), allocatable, intent(inout) :: msg
-    character(len=:), allocatable :: out, xmf, chk, tmp, rst, inp
+    character(len=:), allocatable :: out, xmf, chk, tmp, rst, inp, img
     character(len=path_max) :: names(6), resolved(6)
     character(len=*), parameter :: what(6) = [character(len=31) :: 'the input file', &
       'output_file', "the output's sidecar", 'checkpoint_file', &
@@ -133,6 +133,19 @@ contains
         end if
       end do
     end do
+    ! the image of a cell map is read in the set-up: no file the run writes may be it
+    if (len_trim(cfg%geometry%image) > 0) then
+      img = resolved_path(trim(cfg%geometry%image))
+      do i = 2, 5
+        if (len_trim(resolved(i)) == 0) cycle
+        if (trim(resolved(i)) == img) then
+          call set("&geometry: image = '"//trim(cfg%geometry%image)//"' is the same file as "// &
+                   trim(what(i))//" '"//trim(names(i))//"' ("//img//'); a run must not '// &
+                   'write over its image')
+          return
+        end if
+      end do
+    end if
 
   contains
 

@@ -3,7 +3,7 @@ module iem_input_sets
   use iem_kinds, only: wp
   use iem_constants, only: unset_real
   use iem_strings, only: itoa, rtoa, lower
-  use iem_config, only: bc_config_t, load_config_t, probe_config_t, name_len
+  use iem_config, only: bc_config_t, load_config_t, probe_config_t, node_set_spec_t, name_len
   use iem_namelist_text, only: nml_text_t, line_len
   use iem_input_checks, only: bad, check_keys, read_error, check_reals, check_logicals, &
                               check_strings, check_set, check_tf, check_applies
@@ -22,16 +22,21 @@ contains
     character(len=name_len) :: name
     character(len=8) :: where, kind, dofs, time_function
     real(wp) :: box(4), point(2), velocity(2), t_start, t_ramp, t_release
+    real(wp) :: segment(4), center(2), radius, normal(2)
+    character(len=name_len) :: shape
     character(len=256) :: m
-    namelist /bc/ name, where, box, point, kind, dofs, velocity, time_function, t_start, &
-      t_ramp, t_release
+    namelist /bc/ name, where, box, point, segment, center, radius, shape, normal, kind, dofs, &
+      velocity, time_function, t_start, t_ramp, t_release
     name = ''; where = ''; box = unset_real; point = unset_real; kind = 'fix'; dofs = 'xy'
+    segment = unset_real; center = unset_real; radius = unset_real; shape = ''
+    normal = unset_real
     velocity = 0.0_wp; time_function = 'constant'; t_start = 0.0_wp; t_ramp = 0.0_wp
     t_release = huge(1.0_wp)
     m = ''
     read(chunk, nml=bc, iostat=ios, iomsg=m)
     iomsg = trim(m)
     b%name = name; b%set%where = lower(where); b%set%box = box; b%set%point = point
+    call put_set(b%set, segment, center, radius, shape, normal)
     b%kind = lower(kind); b%velocity = velocity
     b%dof(1) = index(lower(dofs), 'x') > 0
     b%dof(2) = index(lower(dofs), 'y') > 0
@@ -50,8 +55,9 @@ contains
     character(len=line_len), allocatable :: chunk(:)
     character(len=:), allocatable :: iomsg, label
     label = '&bc #'//itoa(ib)//' (line '//itoa(text%groups(g)%first_line)//')'
-    call check_keys(text, g, [character(len=14) :: 'name', 'where', 'box', 'point', 'kind', &
-      'dofs', 'velocity', 'time_function', 't_start', 't_ramp', 't_release'], label, stat, msg)
+    call check_keys(text, g, [character(len=14) :: 'name', 'where', 'box', 'point', &
+      'segment', 'center', 'radius', 'shape', 'normal', 'kind', 'dofs', 'velocity', &
+      'time_function', 't_start', 't_ramp', 't_release'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_bc(chunk, b, stat, iomsg)
@@ -61,12 +67,13 @@ contains
       return
     end if
     call check_strings(text, g, label, [character(len=13) :: 'name', 'where', 'kind', 'dofs', &
-      'time_function'], [name_len, 8, 8, 8, 8], stat, msg)
+      'time_function', 'shape'], [name_len, 8, 8, 8, 8, name_len], stat, msg)
     if (stat == 0) call check_applies(text, g, label, b%set%where, b%tf%kind, stat, msg)
     if (stat /= 0) return
-    call check_reals(text, g, label, [character(len=9) :: 'box', 'box', 'box', 'box', 'point', &
-      'point', 'velocity', 'velocity', 't_start', 't_ramp', 't_release'], [b%set%box, &
-      b%set%point, b%velocity, b%tf%t_start, b%tf%t_ramp, b%t_release], stat, msg)
+    call check_set_reals(text, g, label, b%set, stat, msg)
+    if (stat /= 0) return
+    call check_reals(text, g, label, [character(len=9) :: 'velocity', 'velocity', 't_start', &
+      't_ramp', 't_release'], [b%velocity, b%tf%t_start, b%tf%t_ramp, b%t_release], stat, msg)
     if (stat /= 0) return
     if (len_trim(b%name) == 0) b%name = 'bc'//itoa(ib)
     call check_set(b%set, label, .false., stat, msg)
@@ -102,10 +109,14 @@ contains
     character(len=name_len) :: name
     character(len=8) :: where, kind, time_function
     real(wp) :: box(4), point(2), force(2), traction(2), accel(2), t_start, t_ramp
+    real(wp) :: segment(4), center(2), radius, normal(2)
+    character(len=name_len) :: shape
     character(len=256) :: m
-    namelist /load/ name, kind, where, box, point, force, traction, accel, time_function, &
-      t_start, t_ramp
+    namelist /load/ name, kind, where, box, point, segment, center, radius, shape, normal, &
+      force, traction, accel, time_function, t_start, t_ramp
     name = ''; kind = 'nodal'; where = ''; box = unset_real; point = unset_real
+    segment = unset_real; center = unset_real; radius = unset_real; shape = ''
+    normal = unset_real
     force = unset_real; traction = unset_real; accel = unset_real
     time_function = 'constant'; t_start = 0.0_wp; t_ramp = 0.0_wp
     m = ''
@@ -113,6 +124,7 @@ contains
     iomsg = trim(m)
     l%name = name; l%kind = lower(kind); l%set%where = lower(where); l%set%box = box
     l%set%point = point
+    call put_set(l%set, segment, center, radius, shape, normal)
     select case (trim(l%kind))
     case ('nodal')
       l%value = force
@@ -140,7 +152,8 @@ contains
     character(len=8) :: vname
     label = '&load #'//itoa(il)//' (line '//itoa(text%groups(g)%first_line)//')'
     call check_keys(text, g, [character(len=14) :: 'name', 'kind', 'where', 'box', 'point', &
-      'force', 'traction', 'accel', 'time_function', 't_start', 't_ramp'], label, stat, msg)
+      'segment', 'center', 'radius', 'shape', 'normal', 'force', 'traction', 'accel', &
+      'time_function', 't_start', 't_ramp'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_load(chunk, l, stat, iomsg)
@@ -150,15 +163,16 @@ contains
       return
     end if
     call check_strings(text, g, label, [character(len=13) :: 'name', 'kind', 'where', &
-      'time_function'], [name_len, 8, 8, 8], stat, msg)
+      'time_function', 'shape'], [name_len, 8, 8, 8, name_len], stat, msg)
     if (stat == 0) call check_applies(text, g, label, l%set%where, l%tf%kind, stat, msg)
     if (stat /= 0) return
     ! the vector of the load's kind (a vector of another kind is refused below)
     vname = merge('force   ', merge('traction', merge('accel   ', '        ', &
       l%kind == 'gravity'), l%kind == 'edge'), l%kind == 'nodal')
-    call check_reals(text, g, label, [character(len=8) :: 'box', 'box', 'box', 'box', 'point', &
-      'point', vname, vname, 't_start', 't_ramp'], [l%set%box, l%set%point, l%value, &
-      l%tf%t_start, l%tf%t_ramp], stat, msg)
+    call check_set_reals(text, g, label, l%set, stat, msg)
+    if (stat /= 0) return
+    call check_reals(text, g, label, [character(len=8) :: vname, vname, 't_start', 't_ramp'], &
+      [l%value, l%tf%t_start, l%tf%t_ramp], stat, msg)
     if (stat /= 0) return
     if (len_trim(l%name) == 0) l%name = 'load'//itoa(il)
     select case (trim(l%kind))
@@ -201,6 +215,30 @@ contains
     character(len=:), allocatable :: m
     call parse_load(part, c, ios, m)
   end function try_load
+
+  ! ---------------------------------------------------------------------- node-set helpers
+  !> Store the geometric node-set variables of a &bc or &load read into its set.
+  subroutine put_set(set, segment, center, radius, shape, normal)
+    type(node_set_spec_t), intent(inout) :: set
+    real(wp), intent(in) :: segment(4), center(2), radius, normal(2)
+    character(len=*), intent(in) :: shape
+    set%segment = segment; set%center = center; set%radius = radius
+    set%shape = shape; set%normal = normal
+  end subroutine put_set
+
+  !> Refuse a non-finite or out-of-range real of a node set (check_reals on its variables).
+  subroutine check_set_reals(text, g, label, set, stat, msg)
+    type(nml_text_t), intent(in) :: text
+    integer, intent(in) :: g
+    character(len=*), intent(in) :: label
+    type(node_set_spec_t), intent(in) :: set
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    call check_reals(text, g, label, [character(len=7) :: 'box', 'box', 'box', 'box', 'point', &
+      'point', 'segment', 'segment', 'segment', 'segment', 'center', 'center', 'radius', &
+      'normal', 'normal'], [set%box, set%point, set%segment, set%center, set%radius, &
+      set%normal], stat, msg)
+  end subroutine check_set_reals
 
   ! -------------------------------------------------------------------------------- &probe
   subroutine parse_probe(chunk, p, ios, iomsg)

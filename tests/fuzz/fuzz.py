@@ -66,7 +66,7 @@ FORBIDDEN = ["Error termination", "Backtrace", "Program received signal", "At li
 SETUP_OVERFLOW = re.compile(r"stability limit (NaN|[-+]?Inf)|at step 0\b|step 0/|"
                             r"dt = (NaN|[-+]?Inf)", re.I)
 # what a refusal's message must name: a group (&run, ...), a quoted value or path, a file
-NAMES = re.compile(r"&(run|geometry|material|damping|bc|load|probe|static|initial)\b|'[^']*'|"
+NAMES = re.compile(r"&(run|geometry|material|shape|damping|bc|load|probe|static|initial)\b|'[^']*'|"
                    r"\bfile\b|\.nml: line \d+")
 MPIRUN_NOISE = re.compile(
     r"^(-{20,}|Primary job\s+terminated normally|a non-zero exit code|"

@@ -10,6 +10,7 @@ write (output, its .xmf sidecar, the checkpoint: names from the case's `output_f
   ! setup: mkdir NAME         a folder
   ! setup: fifo NAME          a named pipe
   ! setup: link NAME -> DEST  a symbolic link (DEST need not exist)
+  ! setup: write NAME: TEXT   a regular file holding TEXT, with Python escapes (\\n, \\x00)
 A case passes when iem exits with status 2, prints exactly one `iem: error:` line (from rank
 0 only) that contains the expected text, prints no runtime error or backtrace, and no file
 or folder of the case's folder is created, changed or removed (checksums before and after).
@@ -106,7 +107,12 @@ def prepare(case: Path, work: Path) -> str:
             target = work / name
             if target.parent.is_dir() and not target.exists() and not target.is_symlink():
                 target.write_bytes(b"seeded " + name.encode() + b": must stay as it is\n")
-    for kind, arg in re.findall(r"^! setup: (touch|mkdir|fifo|link) (.+)$", text, re.M):
+    for kind, arg in re.findall(r"^! setup: (touch|mkdir|fifo|link|write) (.+)$", text, re.M):
+        if kind == "write":
+            name, _, content = arg.partition(": ")
+            (work / name.strip()).write_bytes(
+                content.encode("latin-1").decode("unicode_escape").encode("latin-1"))
+            continue
         target = work / arg.split(" -> ")[0].strip()
         if target.is_file() or target.is_symlink():
             target.unlink()  # a set-up line replaces a seeded file of the same name
