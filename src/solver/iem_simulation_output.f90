@@ -81,7 +81,11 @@ contains
     material_names = ''
     do k = 1, size(this%cfg%materials)
       if (k > 1) material_names = material_names//','
-      material_names = material_names//trim(this%cfg%materials(k)%name)
+      if (len_trim(this%cfg%materials(k)%name) == 0) then
+        material_names = material_names//'default'
+      else
+        material_names = material_names//trim(this%cfg%materials(k)%name)
+      end if
     end do
     call this%out%write_mesh(coords, this%model%mass, cells, cell_gids, this%grid%nx, &
       this%grid%ny, this%grid%lx, this%grid%ly, this%grid%thickness, &
