@@ -41,8 +41,9 @@ contains
 
   !> Part (rank, 0-based) of every node of the body, part(0:n_nodes-1) on every rank: METIS on
   !> rank 0 over the whole body, broadcast. vwgt(0:n_nodes-1) (read on rank 0 only) weighs
-  !> the nodes (each >= 1; default all 1); nparts (default the size of comm) is the number of
-  !> parts. Collective; stat /= 0 with msg on every rank when it fails.
+  !> the nodes (each >= 1, their sum within METIS's integer; default all 1); nparts (default
+  !> the size of comm) is the number of parts. Collective; stat /= 0 with msg on every rank
+  !> when it fails.
   subroutine partition(body, comm, part, stat, msg, vwgt, nparts)
     type(body_t), intent(in) :: body
     type(MPI_Comm), intent(in) :: comm
@@ -71,11 +72,14 @@ contains
         stat = 1
       else if (any(vwgt < 1)) then
         stat = 1
+      else if (sum(int(vwgt, i8)) > huge(1_metis_idx)) then
+        stat = 1
       end if
     end if
     call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
     if (stat /= 0) then
-      msg = 'partition: the vertex weights must be one per node of the body, each >= 1'
+      msg = 'partition: the vertex weights must be one per node of the body, each >= 1, '// &
+            'their sum within METIS''s integer'
       return
     end if
     allocate(part(0:n - 1), stat=ierr)
