@@ -1,6 +1,6 @@
-!> Domain decomposition: METIS partition of the body's nodes (on rank 0, broadcast), then each
-!> rank's local lattice (owned + halo nodes, cells touching owned nodes, from the body's
-!> cell-to-node table) and its halo plan (from the cells that join owned and halo nodes).
+!> Domain decomposition: METIS partition of the body's nodes (on rank 0, broadcast; partition),
+!> then each rank's local lattice (owned + halo nodes, cells touching owned nodes, from the body's
+!> cell-to-node table) and its halo plan (from the cells that join owned and halo nodes; build).
 module iem_decomposition
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Bcast, MPI_INTEGER
   use iem_kinds, only: wp, ip, i8, mpi_ip
@@ -14,9 +14,10 @@ module iem_decomposition
   use iem_alloc_guard, only: alloc_guard_t
   use iem_memory, only: bytes_text
   use iem_sort, only: sort_i8
+  use iem_strings, only: itoa
   implicit none
   private
-  public :: decompose
+  public :: decompose, partition, build
 
 contains
 
@@ -31,14 +32,33 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer, intent(in), optional :: width
-    integer :: w, ierr
     integer(ip), allocatable :: part(:)
-    integer :: rank, nranks
+
+    call partition(body, comm, part, stat, msg)
+    if (stat /= 0) return
+    call build(body, part, comm, lat, halo, stat, msg, width)
+  end subroutine decompose
+
+  !> Part (rank, 0-based) of every node of the body, part(0:n_nodes-1) on every rank: METIS on
+  !> rank 0 over the whole body, broadcast. vwgt(0:n_nodes-1) (read on rank 0 only) weighs
+  !> the nodes (each >= 1, their sum within METIS's integer; default all 1); nparts (default
+  !> the size of comm) is the number of parts. Collective; stat /= 0 with msg on every rank
+  !> when it fails.
+  subroutine partition(body, comm, part, stat, msg, vwgt, nparts)
+    type(body_t), intent(in) :: body
+    type(MPI_Comm), intent(in) :: comm
+    integer(ip), allocatable, intent(out) :: part(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(ip), intent(in), optional :: vwgt(0:)
+    integer, intent(in), optional :: nparts
+    integer :: ierr, rank, nranks
     integer(i8) :: n
     type(alloc_guard_t) :: guard
 
     call MPI_Comm_rank(comm, rank)
     call MPI_Comm_size(comm, nranks)
+    if (present(nparts)) nranks = nparts
     stat = 0
     msg = ''
     if (body%n_nodes < 2*nranks) then
@@ -47,11 +67,26 @@ contains
       return
     end if
     n = body%n_nodes
+    if (present(vwgt) .and. rank == 0) then
+      if (size(vwgt, kind=i8) /= n) then
+        stat = 1
+      else if (any(vwgt < 1)) then
+        stat = 1
+      else if (sum(int(vwgt, i8)) > huge(1_metis_idx)) then
+        stat = 1
+      end if
+    end if
+    call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
+    if (stat /= 0) then
+      msg = 'partition: the vertex weights must be one per node of the body, each >= 1, '// &
+            'their sum within METIS''s integer'
+      return
+    end if
     allocate(part(0:n - 1), stat=ierr)
     call guard%note(ierr, 'the partition of the whole body', 4.0_wp*n)
     call guard%agree(comm, body%grid%label(), stat, msg)
     if (stat /= 0) return
-    if (rank == 0) call partition_body(body, nranks, part, stat)
+    if (rank == 0) call partition_body(body, nranks, part, stat, vwgt)
     call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
     select case (stat)
     case (partition_ok)
@@ -68,13 +103,40 @@ contains
     end select
     if (stat /= partition_ok) return
     call MPI_Bcast(part, int(n), mpi_ip(), 0, comm)
+  end subroutine partition
+
+  !> Build this rank's lattice and halo plan (width values a node, default 4) from the part
+  !> array part(0:n_nodes-1), the same on every rank, with values 0 .. size of comm - 1.
+  !> Collective; stat /= 0 with msg on every rank when it fails.
+  subroutine build(body, part, comm, lat, halo, stat, msg, width)
+    type(body_t), intent(in) :: body
+    integer(ip), intent(in) :: part(0:)
+    type(MPI_Comm), intent(in) :: comm
+    type(local_lattice_t), intent(inout) :: lat
+    type(halo_t), intent(inout) :: halo
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer, intent(in), optional :: width
+    integer :: w, rank, nranks
+    type(alloc_guard_t) :: guard
+
+    call MPI_Comm_rank(comm, rank)
+    call MPI_Comm_size(comm, nranks)
+    stat = 0
+    msg = ''
+    if (size(part, kind=i8) /= body%n_nodes .or. any(part < 0 .or. part >= nranks)) then
+      stat = 1
+      msg = 'build: the part array must hold one rank (0 .. '//itoa(nranks - 1)// &
+            ') per node of the body'
+      return
+    end if
     call build_local(body, part, rank, lat, guard)
     call guard%agree(comm, body%grid%label(), stat, msg)
     if (stat /= 0) return
     w = 4
     if (present(width)) w = width
     call build_halo(part, rank, comm, lat, halo, w)
-  end subroutine decompose
+  end subroutine build
 
   !> Build the local lattice of rank `me` from the global part array; a failed allocation is
   !> noted in guard (and the lattice left incomplete).

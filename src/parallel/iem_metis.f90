@@ -1,7 +1,7 @@
 !> METIS k-way partition of the graph of the body's nodes (two nodes are joined when they share a
 !> cell of the body).
 module iem_metis
-  use, intrinsic :: iso_c_binding, only: c_ptr, c_null_ptr, c_int
+  use, intrinsic :: iso_c_binding, only: c_ptr, c_null_ptr, c_int, c_loc
   use iem_kinds, only: ip, i8
   use iem_build_info, only: metis_idx
   use iem_body, only: body_t
@@ -42,13 +42,17 @@ contains
   !> Part (0..nparts-1) of every node of the body, from METIS on the graph of nodes that
   !> share a cell; stat is one of partition_ok, partition_failed, partition_no_memory (the
   !> graph's arrays), partition_metis_no_memory. Neighbours are listed in ascending number,
-  !> so a full rectangle gives the graph (and the partition) of its grid.
-  subroutine partition_body(body, nparts, part, stat)
+  !> so a full rectangle gives the graph (and the partition) of its grid. vwgt(0:n_nodes-1)
+  !> (optional, each >= 1) weighs the nodes; without it every node weighs 1.
+  subroutine partition_body(body, nparts, part, stat, vwgt)
     type(body_t), intent(in) :: body
     integer, intent(in) :: nparts
     integer(ip), intent(out) :: part(0:)
     integer, intent(out) :: stat
+    integer(ip), intent(in), optional :: vwgt(0:)
     integer(metis_idx), allocatable :: xadj(:), adjncy(:), mpart(:)
+    integer(metis_idx), allocatable, target :: mwgt(:)
+    type(c_ptr) :: pwgt
     integer(metis_idx) :: options(metis_noptions), nv, ncon, np, objval
     integer :: ij(2), di, dj, ierr
     integer(i8) :: g, k, n_entries, h
@@ -73,6 +77,16 @@ contains
       stat = partition_no_memory
       return
     end if
+    pwgt = c_null_ptr
+    if (present(vwgt)) then
+      allocate(mwgt(0:body%n_nodes - 1), stat=ierr)
+      if (ierr /= 0) then
+        stat = partition_no_memory
+        return
+      end if
+      mwgt = int(vwgt, metis_idx)
+      pwgt = c_loc(mwgt)
+    end if
     k = 0
     xadj(0) = 0
     do g = 0, body%n_nodes - 1
@@ -93,7 +107,7 @@ contains
     if (body%n_pieces > 1) options(metis_option_contig + 1) = 0
     ncon = 1
     np = int(nparts, metis_idx)
-    stat = metis_part_graph_kway(nv, ncon, xadj, adjncy, c_null_ptr, c_null_ptr, c_null_ptr, &
+    stat = metis_part_graph_kway(nv, ncon, xadj, adjncy, pwgt, c_null_ptr, c_null_ptr, &
                                  np, c_null_ptr, c_null_ptr, options, objval, mpart)
     if (stat /= metis_ok) then
       stat = merge(partition_metis_no_memory, partition_failed, stat == metis_error_memory)
