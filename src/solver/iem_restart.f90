@@ -173,7 +173,7 @@ contains
 
   !> Restore the state of the checkpoint this run continues from. Collective.
   module procedure load_checkpoint
-    real(wp), allocatable :: nodes(:, :), cells(:, :), scratch(:, :)
+    real(wp), allocatable :: nodes(:, :), cells(:, :)
     integer(i8), allocatable :: cg(:)
     real(wp) :: energy(2)
     integer :: l, ns, n, d, j, i, o
@@ -209,11 +209,7 @@ contains
     this%warned = this%restart%warned /= 0
     this%last_sample = this%restart%last_sample
     this%last_frame_time = this%restart%last_frame_time
-    if (this%verlet) then
-      this%snap = this%st%y(1:4, 1:n)
-      this%snap_step = this%restart%step
-      this%snap_time = this%restart%t
-    end if
+    call keep_good_state(this, this%restart%step, this%restart%t)
     if (this%model%nonlinear) then
       associate(st => this%model%nl%state)
         do l = 1, this%lat%n_cells
@@ -233,14 +229,35 @@ contains
         end do
       end associate
     end if
-    if (this%verlet .and. this%restart%step > 0) then
-      ! Verlet does not evaluate the rates at the step it starts from (they are in the
-      ! checkpoint); one trial evaluation, into a scratch array, gives the strain energy
-      allocate(scratch(size(this%st%acc, 1), n))
-      call this%halo%exchange(this%st%y)
-      call this%model%rate(this%lat, this%st%y, this%restart%t, scratch, energy(1), energy(2))
-    end if
+    ! the integrator redoes what it needs of the loaded state (its resume, called next)
   end procedure load_checkpoint
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure checkpoint_if_due
+    integer :: sig
+    logical :: due
+    stat = 0
+    msg = ''
+    sig = 0
+    if (mod(k, int(this%cfg%run%check_interval, i8)) == 0) then
+      sig = signal_caught()
+      call MPI_Allreduce(MPI_IN_PLACE, sig, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    end if
+    due = sig /= 0
+    ! (no short-circuit in Fortran: test the interval before dividing by it)
+    if (this%cfg%run%checkpoint_interval > 0.0_wp) then
+      if (crossed(t_prev, t, this%cfg%run%checkpoint_interval)) due = .true.
+    end if
+    if (.not. due) return
+    call write_checkpoint(this, k, t, sig, stat, msg)
+    if (stat /= 0) return
+    if (sig /= 0) then
+      stat = 4
+      msg = 'stopped by signal '//itoa(sig)//' at step '//itoa(k)//', t = '//rtoa(t)// &
+            ' s, after writing the checkpoint '//trim(this%cfg%run%checkpoint_file)// &
+            '; continue with restart = '''//trim(this%cfg%run%checkpoint_file)//''''
+    end if
+  end procedure checkpoint_if_due
 
   !> Reopen the output of the interrupted run to append to it, and record the continuation
   !> in it (/continuations).

@@ -1,6 +1,10 @@
 !> A whole run: set up the lattice, model and output from a validated configuration, then
-!> march in time with RK4 or velocity Verlet (analysis = 'dynamic') or relax load step by load step (analysis =
-!> 'static'), recording history, frames and progress.
+!> march in time with an integrator (analysis = 'dynamic') or relax load step by load step
+!> (analysis = 'static'), recording history, frames and progress. This module holds the run's
+!> type and its driver, which only sequences the parts that live in the submodules: set-up
+!> (_setup), the history recorder and frames (_output), checkpoints and continued runs
+!> (iem_restart), the guards (_guards), the static load steps (_static) and the reports
+!> (_report); the integrators are behind iem_integrator's interface (docs/architecture.md).
 module iem_simulation
   use mpi_f08, only: MPI_Comm, MPI_Allreduce, MPI_MAX, MPI_IN_PLACE, MPI_Wtime, MPI_LOGICAL, &
     MPI_LAND, MPI_INTEGER
@@ -11,9 +15,8 @@ module iem_simulation
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_model, only: model_t
-  use iem_state, only: state_t, state_rate
-  use iem_rk4, only: rk4_finish_step
-  use iem_verlet, only: verlet_step
+  use iem_state, only: state_t
+  use iem_integrator, only: integrator_t
   use iem_relaxation, only: relaxation_t
   use iem_checkpoint, only: checkpoint_header_t
   use iem_signals, only: install_signal_handlers, signal_caught
@@ -41,8 +44,11 @@ module iem_simulation
     !> Dynamic relaxation of a static run.
     type(relaxation_t) :: relax
     logical :: static = .false.
-    !> Dynamic runs: velocity Verlet instead of RK4.
+    !> Dynamic runs: &run integrator is velocity Verlet (for the set-up's memory estimate and
+    !> the checkpoint's header; the time loop asks integ instead).
     logical :: verlet = .false.
+    !> Dynamic runs: the time integrator (iem_integrator_factory).
+    class(integrator_t), allocatable :: integ
     type(h5_output_t) :: out
     real(wp) :: dt = 0.0_wp, dt_limit = 0.0_wp, omega_max = 0.0_wp
     integer(i8) :: n_steps = 0
@@ -113,6 +119,17 @@ module iem_simulation
       character(len=:), allocatable, intent(out) :: msg
     end subroutine load_checkpoint
 
+    !> At the top of step k > the first: write a checkpoint when one is due (its interval of
+    !> simulated time since t_prev, or a signal, polled every check_interval steps); after a
+    !> signal stop with stat = 4. Collective.
+    module subroutine checkpoint_if_due(this, k, t, t_prev, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t, t_prev
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine checkpoint_if_due
+
     !> Reopen the output of the interrupted run to append to it.
     module subroutine reopen_output(this, stat, msg)
       type(simulation_t), intent(inout) :: this
@@ -165,6 +182,12 @@ module iem_simulation
       integer, intent(out) :: stat
     end subroutine flush_history
 
+    !> True when a multiple of interval lies in (t_prev, t] (always when t_prev < 0): whether
+    !> a sample, frame or checkpoint with that interval is due at t.
+    module pure logical function crossed(t_prev, t, interval)
+      real(wp), intent(in) :: t_prev, t, interval
+    end function crossed
+
     !> Write a frame of the state at step k (and the cells' degree of nonlinearity).
     module subroutine write_frame(this, k, t, stat)
       type(simulation_t), intent(inout) :: this
@@ -182,8 +205,24 @@ module iem_simulation
       character(len=:), allocatable, intent(out) :: msg
     end subroutine run_static
 
-    !> Guard at step k: every owned value finite (else stop with the last good frame); keep the
-    !> state as the last good one; the energy balance against the thresholds. Collective.
+    !> Allocate the guards' copy of the last good state: empty when the integrator rejects
+    !> non-finite steps itself. Failures go to guard.
+    module subroutine init_guards(this, guard)
+      type(simulation_t), intent(inout) :: this
+      type(alloc_guard_t), intent(inout) :: guard
+    end subroutine init_guards
+
+    !> Keep the state of step k as the last good one (only when the integrator updates the
+    !> state in place and cannot reject a step).
+    module subroutine keep_good_state(this, k, t)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t
+    end subroutine keep_good_state
+
+    !> Guard at step k, for an integrator that updates the state in place: every owned value
+    !> finite (else stop with the last good frame), then keep the state as the last good one.
+    !> Nothing for one that rejects non-finite steps itself. Collective.
     module subroutine check_state(this, k, t, stat, msg)
       type(simulation_t), intent(inout) :: this
       integer(i8), intent(in) :: k
@@ -203,6 +242,26 @@ module iem_simulation
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
     end subroutine stop_nonfinite
+
+    !> Stop on a history sample at step k whose global sums are not finite, writing the last
+    !> good state as the last frame. Collective.
+    module subroutine stop_diverged(this, k, t, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine stop_diverged
+
+    !> Stop on the step from k that the integrator rejected (its new state, in st%ynew, is not
+    !> finite; y still holds that of step k, written as the last frame). Collective.
+    module subroutine stop_rejected(this, k, t, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine stop_rejected
 
     !> Energy guard after a history sample: warn once above energy_warn, stop above
     !> energy_stop, naming the node with the largest speed (where a divergence grows fastest)
@@ -248,38 +307,52 @@ contains
     class(simulation_t), intent(inout) :: this
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer(i8) :: k, k_first
-    integer :: sig, ierr
-    real(wp) :: t, t_prev, wall0, wall_last, next_report
-    logical :: diverged, finite, due
-    type(alloc_guard_t) :: guard
 
     ! a dynamic run checkpoints and stops on SIGTERM/SIGUSR1 from here on (a signal during
     ! the set-up is acted on at the first check of the time loop)
     if (.not. this%static) call install_signal_handlers()
     call open_output(this, stat, msg)
     if (stat /= 0) return
-    ! the state is allocated only now, after the mesh output's temporaries are gone, so that
-    ! they do not add to the peak memory
-    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
-                      rk4_work=.not. (this%static .or. this%verlet), guard=guard)
-    if (.not. this%static) then
-      ! Verlet updates the state in place: the guard keeps a copy of the last good one; RK4
-      ! checks each new state before accepting it and needs none
-      allocate(this%snap(4, merge(this%lat%n_owned, 0, this%verlet)), stat=ierr)
-      call guard%note(ierr, 'the copy of the last good state', 32.0_wp*this%lat%n_owned)
-    end if
-    call guard%agree(this%comm, this%grid%label(), stat, msg)
+    call allocate_state(this, stat, msg)
     if (stat /= 0) return
-    if (.not. this%static) then
-      this%snap = 0.0_wp
-      call initial_velocity(this)
-    end if
-    call this%model%prescribe(this%st%y, 0.0_wp)
     if (this%static) then
       call run_static(this, stat, msg)
-      return
+    else
+      call run_dynamic(this, stat, msg)
     end if
+  end subroutine simulation_run
+
+  !> Allocate the state (with the work arrays the integrator needs) and the guards' copy,
+  !> all ranks agreeing; set the initial state. Only now, after the mesh output's temporaries
+  !> are gone, so that they do not add to the peak memory.
+  subroutine allocate_state(this, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    type(alloc_guard_t) :: guard
+    logical :: work
+    work = .false.
+    if (.not. this%static) work = this%integ%work_arrays()
+    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
+                      rk4_work=work, guard=guard)
+    if (.not. this%static) call init_guards(this, guard)
+    call guard%agree(this%comm, this%grid%label(), stat, msg)
+    if (stat /= 0) return
+    if (.not. this%static) call initial_velocity(this)
+    call this%model%prescribe(this%st%y, 0.0_wp)
+  end subroutine allocate_state
+
+  !> The time loop of a dynamic run, from step 0 or the checkpoint it continues from, to
+  !> n_steps: at the top of each step a checkpoint when due, the integrator's rates, the
+  !> guards, the history sample and the frame when due, progress; then the integrator's step.
+  subroutine run_dynamic(this, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(i8) :: k, k_first, check_interval
+    real(wp) :: t, t_prev, wall0, wall_last, next_report
+    logical :: diverged, accepted
+
     call report_start(this)
     wall0 = MPI_Wtime()
     wall_last = wall0
@@ -291,42 +364,22 @@ contains
     if (this%restart%step > 0) then
       call load_checkpoint(this, stat, msg)
       if (stat /= 0) return
+      call this%integ%resume(this%model, this%lat, this%halo, this%st, this%restart%t)
       k_first = this%restart%step
       t_prev = real(k_first - 1, wp)*this%dt
       next_report = real(floor(10.0_wp*real(k_first, wp)/real(this%n_steps, wp)) + 1, wp)/10.0_wp
       call log_info('continuing from '//trim(this%cfg%run%restart)//' at step '// &
                     itoa(k_first)//', t = '//rtoa(real(k_first, wp)*this%dt)//' s')
     end if
+    check_interval = int(this%cfg%run%check_interval, i8)
     do k = k_first, this%n_steps
       t = real(k, wp)*this%dt
-      ! checkpoints: at their interval, and when the scheduler signals the end of the job
       if (k > k_first) then
-        sig = 0
-        if (mod(k, int(this%cfg%run%check_interval, i8)) == 0) then
-          sig = signal_caught()
-          call MPI_Allreduce(MPI_IN_PLACE, sig, 1, MPI_INTEGER, MPI_MAX, this%comm)
-        end if
-        due = sig /= 0
-        ! (no short-circuit in Fortran: test the interval before dividing by it)
-        if (this%cfg%run%checkpoint_interval > 0.0_wp) then
-          if (crossed(t_prev, t, this%cfg%run%checkpoint_interval)) due = .true.
-        end if
-        if (due) then
-          call write_checkpoint(this, k, t, sig, stat, msg)
-          if (stat /= 0) return
-          if (sig /= 0) then
-            stat = 4
-            msg = 'stopped by signal '//itoa(sig)//' at step '//itoa(k)//', t = '//rtoa(t)// &
-                  ' s, after writing the checkpoint '//trim(this%cfg%run%checkpoint_file)// &
-                  '; continue with restart = '''//trim(this%cfg%run%checkpoint_file)//''''
-            return
-          end if
-        end if
+        call checkpoint_if_due(this, k, t, t_prev, stat, msg)
+        if (stat /= 0) return
       end if
-      ! the rates at y(t): Verlet's last step has evaluated them already
-      if (k == 0 .or. .not. this%verlet) call state_rate(this%model, this%lat, this%halo, &
-                                                         this%st, t)
-      if (this%verlet .and. mod(k, int(this%cfg%run%check_interval, i8)) == 0) then
+      call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, k == 0)
+      if (mod(k, check_interval) == 0) then
         call check_state(this, k, t, stat, msg)
         if (stat /= 0) return
       end if
@@ -334,14 +387,7 @@ contains
           crossed(t_prev, t, this%cfg%run%history_interval)) then
         call record_sample(this, k, t, diverged)
         if (diverged) then
-          if (this%verlet) then
-            call stop_nonfinite(this, k, t, this%st%y, this%snap, this%snap_step, &
-                                this%snap_time, stat, msg)
-          else
-            ! RK4 accepted only finite states: the energies overflowed
-            call stop_nonfinite(this, k, t, this%st%y, this%st%y(1:4, 1:this%lat%n_owned), &
-                                k, t, stat, msg)
-          end if
+          call stop_diverged(this, k, t, stat, msg)
           return
         end if
         call energy_guard(this, k, t, stat, msg)
@@ -360,19 +406,11 @@ contains
       end if
       if (this%rank == 0) call progress(this, k, t, wall0, wall_last, next_report)
       if (k == this%n_steps) exit
-      if (this%verlet) then
-        call verlet_step(this%model, this%lat, this%halo, this%st, t, this%dt, &
-                         this%w_ext, this%w_damp)
-      else
-        call rk4_finish_step(this%model, this%lat, this%halo, this%st, t, this%dt, &
-                             this%w_ext, this%w_damp, finite)
-        call MPI_Allreduce(MPI_IN_PLACE, finite, 1, MPI_LOGICAL, MPI_LAND, this%comm)
-        if (.not. finite) then
-          ! the step is not accepted: y still holds the last good state, that of step k
-          call stop_nonfinite(this, k + 1, t + this%dt, this%st%ynew, &
-                              this%st%y(1:4, 1:this%lat%n_owned), k, t, stat, msg)
-          return
-        end if
+      call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
+                           this%w_damp, accepted)
+      if (.not. accepted) then
+        call stop_rejected(this, k, t, stat, msg)
+        return
       end if
       t_prev = t
     end do
@@ -384,7 +422,7 @@ contains
     call log_info('done: '//itoa(this%n_steps)//' steps in '//rtoa(MPI_Wtime() - wall0)// &
                   ' s wall; final energy-balance error '//rtoa(this%last_balance))
     call report_performance(this, MPI_Wtime() - wall0)
-  end subroutine simulation_run
+  end subroutine run_dynamic
 
   !> Close the output (marking it complete when the run ended normally).
   subroutine simulation_finish(this, complete, stat, msg)
@@ -399,11 +437,4 @@ contains
       this%output_open = .false.
     end if
   end subroutine simulation_finish
-
-  !> True when a multiple of interval lies in (t_prev, t].
-  pure logical function crossed(t_prev, t, interval)
-    real(wp), intent(in) :: t_prev, t, interval
-    crossed = floor(t/interval*(1.0_wp + 1.0e-12_wp)) > floor(t_prev/interval*(1.0_wp + 1.0e-12_wp))
-    if (t_prev < 0.0_wp) crossed = .true.
-  end function crossed
 end module iem_simulation

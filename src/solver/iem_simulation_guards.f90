@@ -1,5 +1,7 @@
 !> Guards of a dynamic run: non-finite states and the energy balance, which stop the
-!> run naming where it diverged and writing the last good state as a frame.
+!> run naming where it diverged and writing the last good state as a frame. Which state is
+!> the last good one depends on the integrator: y itself when it rejects non-finite steps
+!> (RK4), else the copy kept here at every check (velocity Verlet).
 submodule (iem_simulation) iem_simulation_guards
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_INTEGER8, MPI_MIN, MPI_2DOUBLE_PRECISION, MPI_MAXLOC
@@ -9,11 +11,30 @@ submodule (iem_simulation) iem_simulation_guards
 contains
 
   !> Documented at its interface in iem_simulation.f90.
+  module procedure init_guards
+    integer :: ierr, n
+    n = merge(0, this%lat%n_owned, this%integ%rejects_nonfinite())
+    allocate(this%snap(4, n), stat=ierr)
+    call guard%note(ierr, 'the copy of the last good state', 32.0_wp*this%lat%n_owned)
+    if (ierr == 0) this%snap = 0.0_wp
+  end procedure init_guards
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure keep_good_state
+    if (this%integ%rejects_nonfinite()) return
+    this%snap = this%st%y(1:4, 1:this%lat%n_owned)
+    this%snap_step = k
+    this%snap_time = t
+  end procedure keep_good_state
+
+  !> Documented at its interface in iem_simulation.f90.
   module procedure check_state
     integer :: n
     logical :: finite
     stat = 0
     msg = ''
+    ! an integrator that rejects non-finite steps has checked every state it accepted
+    if (this%integ%rejects_nonfinite()) return
     n = this%lat%n_owned
     finite = all(ieee_is_finite(this%st%y(1:4, 1:n)))
     call MPI_Allreduce(MPI_IN_PLACE, finite, 1, MPI_LOGICAL, MPI_LAND, this%comm)
@@ -22,10 +43,26 @@ contains
                           stat, msg)
       return
     end if
-    this%snap = this%st%y(1:4, 1:n)
-    this%snap_step = k
-    this%snap_time = t
+    call keep_good_state(this, k, t)
   end procedure check_state
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure stop_diverged
+    if (this%integ%rejects_nonfinite()) then
+      ! only finite states were accepted: the energies overflowed
+      call stop_nonfinite(this, k, t, this%st%y, this%st%y(1:4, 1:this%lat%n_owned), k, t, &
+                          stat, msg)
+    else
+      call stop_nonfinite(this, k, t, this%st%y, this%snap, this%snap_step, this%snap_time, &
+                          stat, msg)
+    end if
+  end procedure stop_diverged
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure stop_rejected
+    call stop_nonfinite(this, k + 1, t + this%dt, this%st%ynew, &
+                        this%st%y(1:4, 1:this%lat%n_owned), k, t, stat, msg)
+  end procedure stop_rejected
 
   !> Documented at its interface in iem_simulation.f90.
   module procedure stop_nonfinite

@@ -231,6 +231,12 @@ contains
     this%n_buf = 0
   end procedure flush_history
 
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure crossed
+    crossed = floor(t/interval*(1.0_wp + 1.0e-12_wp)) > floor(t_prev/interval*(1.0_wp + 1.0e-12_wp))
+    if (t_prev < 0.0_wp) crossed = .true.
+  end procedure crossed
+
   !> Write a frame of the state at step k (and the cells' degree of nonlinearity).
   module procedure write_frame
     character(len=:), allocatable :: msg

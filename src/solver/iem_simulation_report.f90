@@ -4,7 +4,6 @@ submodule (iem_simulation) iem_simulation_report
   use mpi_f08, only: MPI_SUM
   use iem_kinds, only: mpi_wp
   use iem_build_info, only: iem_version
-  use iem_constants, only: rk4_imag_limit
   use iem_timers, only: timer_total, timer_names, n_timers, peak_rss_bytes
   implicit none
 
@@ -82,15 +81,13 @@ contains
 
   !> 'RK4' or 'velocity Verlet': the integrator of a dynamic run, for messages.
   module procedure integrator_name
-    name = 'RK4'
-    if (this%verlet) name = 'velocity Verlet'
+    name = this%integ%name()
   end procedure integrator_name
 
   !> The integrator's stable step without damping.
   real(wp) function undamped_limit(this) result(dt)
     type(simulation_t), intent(in) :: this
-    dt = rk4_imag_limit/this%omega_max
-    if (this%verlet) dt = 2.0_wp/this%omega_max
+    dt = this%integ%undamped_dt(this%omega_max)
   end function undamped_limit
 
 end submodule iem_simulation_report

@@ -5,7 +5,8 @@ submodule (iem_simulation) iem_simulation_setup
   use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_SUM, MPI_INTEGER8
   use iem_config, only: damping_config_t
   use iem_decomposition, only: decompose
-  use iem_stable_dt, only: cell_omega_max, rk4_stable_dt, verlet_stable_dt
+  use iem_integrator_factory, only: integrator_create
+  use iem_stable_dt, only: cell_omega_max
   use iem_nonlinear_springs, only: springs_per_cell
   use iem_spring_constants, only: spring_moduli
   use iem_logger, only: log_warn
@@ -33,6 +34,7 @@ contains
     this%cfg = cfg
     this%static = cfg%run%analysis == 'static'
     this%verlet = .not. this%static .and. cfg%run%integrator == 'verlet'
+    if (.not. this%static) call integrator_create(cfg%run%integrator, comm, this%integ)
     if (this%static) then
       ! a static run has no damping: relaxation brings its own
       if (cfg%damping%kind /= 'none') call log_warn('&damping is ignored in a static analysis '// &
@@ -119,13 +121,8 @@ contains
       this%n_steps = cfg%static%load_steps
       this%dt = cfg%run%t_end/real(this%n_steps, wp)
     else
-      if (this%verlet) then
-        this%dt_limit = verlet_stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
-                                         this%model%omega_cap)
-      else
-        this%dt_limit = rk4_stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
-                                      this%model%omega_cap)
-      end if
+      this%dt_limit = this%integ%stable_dt(this%omega_max, this%model%alpha, this%model%beta, &
+                                           this%model%omega_cap)
       if (cfg%run%dt > 0.0_wp) then
         if (cfg%run%dt > this%dt_limit .and. cfg%run%allow_unstable_dt) then
           call log_warn('&run: dt = '//rtoa(cfg%run%dt)//' s is '// &

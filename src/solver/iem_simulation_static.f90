@@ -1,5 +1,6 @@
 !> The static run (analysis = 'static'): load step by load step, each relaxed to
-!> equilibrium, then recorded.
+!> equilibrium, then recorded. The sibling of the dynamic time loop: relaxation_t's step
+!> takes the place of the integrator (docs/architecture.md, "Run driver and integrators").
 submodule (iem_simulation) iem_simulation_static
   use iem_relaxation, only: relax_result_t
   use iem_build_info, only: iem_version

@@ -18,7 +18,7 @@ module iem_state
     real(wp), allocatable :: y(:, :)
     !> RK4 only: stage state (owned and halo nodes).
     real(wp), allocatable :: ys(:, :)
-    !> RK4 only: accumulated new state (owned nodes).
+    !> RK4 only: accumulated new state (owned nodes); after a rejected step, the rejected one.
     real(wp), allocatable :: ynew(:, :)
     !> Rates of rows 3: of the last evaluation (owned nodes): accelerations[, filter rates].
     real(wp), allocatable :: acc(:, :)

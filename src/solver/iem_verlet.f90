@@ -1,17 +1,105 @@
 !> Velocity Verlet (kick-drift-kick) step of the lattice: one force evaluation a step, second
-!> order, symplectic when undamped; damping forces use the half-step velocity.
+!> order, symplectic when undamped; damping forces use the half-step velocity. verlet_t puts
+!> it behind iem_integrator's interface: it updates the state in place and accepts every step.
 module iem_verlet
   use iem_kinds, only: wp
+  use iem_stable_dt, only: verlet_stable_dt
+  use iem_integrator, only: integrator_t
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_model, only: model_t
-  use iem_state, only: state_t
+  use iem_state, only: state_t, state_rate
   use iem_timers, only: timer_start, timer_stop, t_force, t_halo, t_update
   implicit none
   private
-  public :: verlet_step
+  public :: verlet_t, verlet_step
+
+  !> Velocity Verlet as an integrator_t: one force evaluation a step, whose rates carry over
+  !> to the next step; no stage arrays; every step accepted (the guards keep a copy).
+  type, extends(integrator_t) :: verlet_t
+  contains
+    procedure :: name => verlet_name
+    procedure :: stable_dt => verlet_dt
+    procedure :: undamped_dt => verlet_undamped_dt
+    procedure :: work_arrays => verlet_false
+    procedure :: rejects_nonfinite => verlet_false
+    procedure :: prepare => verlet_prepare
+    procedure :: step => verlet_accept_step
+    procedure :: resume => verlet_resume
+  end type verlet_t
 
 contains
+
+  !> 'velocity Verlet'.
+  function verlet_name(this) result(name)
+    class(verlet_t), intent(in) :: this
+    character(len=:), allocatable :: name
+    name = 'velocity Verlet'
+  end function verlet_name
+
+  !> Velocity Verlet's stable step with damping (iem_stable_dt's verlet_stable_dt).
+  pure real(wp) function verlet_dt(this, omega_max, alpha, beta, omega_cap)
+    class(verlet_t), intent(in) :: this
+    real(wp), intent(in) :: omega_max, alpha, beta, omega_cap
+    verlet_dt = verlet_stable_dt(omega_max, alpha, beta, omega_cap)
+  end function verlet_dt
+
+  !> Velocity Verlet's stable step without damping: 2/omega_max.
+  pure real(wp) function verlet_undamped_dt(this, omega_max)
+    class(verlet_t), intent(in) :: this
+    real(wp), intent(in) :: omega_max
+    verlet_undamped_dt = 2.0_wp/omega_max
+  end function verlet_undamped_dt
+
+  !> False: Verlet needs no stage arrays, and updates the state in place.
+  pure logical function verlet_false(this)
+    class(verlet_t), intent(in) :: this
+    verlet_false = .false.
+  end function verlet_false
+
+  !> The rates at y(t): evaluated at the first step of the run only; later the previous step
+  !> has left them in st%acc (and a restart has loaded them from the checkpoint).
+  subroutine verlet_prepare(this, model, lat, halo, st, t, first)
+    class(verlet_t), intent(inout) :: this
+    type(model_t), intent(inout) :: model
+    type(local_lattice_t), intent(in) :: lat
+    type(halo_t), intent(inout) :: halo
+    type(state_t), intent(inout) :: st
+    real(wp), intent(in) :: t
+    logical, intent(in) :: first
+    if (first) call state_rate(model, lat, halo, st, t)
+  end subroutine verlet_prepare
+
+  !> One velocity Verlet step (verlet_step); always accepted.
+  subroutine verlet_accept_step(this, model, lat, halo, st, t, dt, w_ext, w_damp, accepted)
+    class(verlet_t), intent(inout) :: this
+    type(model_t), intent(inout) :: model
+    type(local_lattice_t), intent(in) :: lat
+    type(halo_t), intent(inout) :: halo
+    type(state_t), intent(inout) :: st
+    real(wp), intent(in) :: t, dt
+    real(wp), intent(inout) :: w_ext, w_damp
+    logical, intent(out) :: accepted
+    call verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp)
+    accepted = .true.
+  end subroutine verlet_accept_step
+
+  !> Verlet does not evaluate the rates at the step it starts from (they are in the
+  !> checkpoint): one trial evaluation, into a scratch array and without commit, gives the
+  !> model the strain energy of the loaded state.
+  subroutine verlet_resume(this, model, lat, halo, st, t)
+    class(verlet_t), intent(inout) :: this
+    type(model_t), intent(inout) :: model
+    type(local_lattice_t), intent(in) :: lat
+    type(halo_t), intent(inout) :: halo
+    type(state_t), intent(inout) :: st
+    real(wp), intent(in) :: t
+    real(wp), allocatable :: scratch(:, :)
+    real(wp) :: p_ext, p_damp
+    allocate(scratch(size(st%acc, 1), lat%n_owned))
+    call halo%exchange(st%y)
+    call model%rate(lat, st%y, t, scratch, p_ext, p_damp)
+  end subroutine verlet_resume
 
   !> Advance y from t to t + dt, given in st%acc the rates at (u(t), damping velocity of the
   !> previous half step) from state_rate or the previous call; leaves in st%acc the rates at

@@ -1,0 +1,118 @@
+!> The interface of the explicit time integrators of a dynamic run (RK4, velocity Verlet):
+!> what the run driver calls once a step, and what the guards and the memory need to know of
+!> them. The driver holds a class(integrator_t) made by iem_integrator_factory and never
+!> branches on which one it is (docs/architecture.md, "Run driver and integrators").
+!>
+!> Contract of a step: the rates at y(t) are in st%acc after prepare (with the powers
+!> st%p_ext1, st%p_damp1 when prepare evaluated them); step advances y to t + dt and adds the
+!> step's local external work and damping dissipation to w_ext, w_damp. An integrator that
+!> rejects non-finite states (rejects_nonfinite) leaves y at the state of t when a step is not
+!> accepted, with the rejected state in st%ynew; one that updates y in place always accepts,
+!> and the guards keep a copy of the last good state for it. Accepted states commit the
+!> springs' history. One polymorphic call a step: nothing is dispatched per node or cell.
+module iem_integrator
+  use mpi_f08, only: MPI_Comm
+  use iem_kinds, only: wp
+  use iem_local_lattice, only: local_lattice_t
+  use iem_halo, only: halo_t
+  use iem_model, only: model_t
+  use iem_state, only: state_t
+  implicit none
+  private
+  public :: integrator_t
+
+  !> An explicit time integrator of the lattice: its name, stability limit, memory needs and
+  !> the two calls a step.
+  type, abstract :: integrator_t
+    !> The communicator over which a step's acceptance is agreed.
+    type(MPI_Comm) :: comm
+  contains
+    procedure :: init => integrator_init
+    procedure(integrator_name_i), deferred :: name
+    procedure(integrator_stable_dt_i), deferred :: stable_dt
+    procedure(integrator_undamped_dt_i), deferred :: undamped_dt
+    procedure(integrator_flag_i), deferred :: work_arrays
+    procedure(integrator_flag_i), deferred :: rejects_nonfinite
+    procedure(integrator_prepare_i), deferred :: prepare
+    procedure(integrator_step_i), deferred :: step
+    procedure(integrator_resume_i), deferred :: resume
+  end type integrator_t
+
+  abstract interface
+    !> The integrator's name for messages ('RK4', 'velocity Verlet').
+    function integrator_name_i(this) result(name)
+      import :: integrator_t
+      class(integrator_t), intent(in) :: this
+      character(len=:), allocatable :: name
+    end function integrator_name_i
+
+    !> Largest stable dt for the highest lattice frequency omega_max (rad/s) with Rayleigh
+    !> damping (alpha, beta) and the damping cap omega_cap (0: none).
+    pure real(wp) function integrator_stable_dt_i(this, omega_max, alpha, beta, omega_cap)
+      import :: integrator_t, wp
+      class(integrator_t), intent(in) :: this
+      real(wp), intent(in) :: omega_max, alpha, beta, omega_cap
+    end function integrator_stable_dt_i
+
+    !> Largest stable dt without damping for the highest frequency omega_max (rad/s).
+    pure real(wp) function integrator_undamped_dt_i(this, omega_max)
+      import :: integrator_t, wp
+      class(integrator_t), intent(in) :: this
+      real(wp), intent(in) :: omega_max
+    end function integrator_undamped_dt_i
+
+    !> A yes/no property of the integrator (see the bindings).
+    pure logical function integrator_flag_i(this)
+      import :: integrator_t
+      class(integrator_t), intent(in) :: this
+    end function integrator_flag_i
+
+    !> Make the rates at y(t) available in st%acc at the top of a step; first: the first step
+    !> of the run (nothing has been evaluated yet).
+    subroutine integrator_prepare_i(this, model, lat, halo, st, t, first)
+      import :: integrator_t, model_t, local_lattice_t, halo_t, state_t, wp
+      class(integrator_t), intent(inout) :: this
+      type(model_t), intent(inout) :: model
+      type(local_lattice_t), intent(in) :: lat
+      type(halo_t), intent(inout) :: halo
+      type(state_t), intent(inout) :: st
+      real(wp), intent(in) :: t
+      logical, intent(in) :: first
+    end subroutine integrator_prepare_i
+
+    !> Advance y from t to t + dt, adding the step's local work and dissipation to w_ext and
+    !> w_damp; accepted (the same on every rank) is false when the new state was rejected.
+    subroutine integrator_step_i(this, model, lat, halo, st, t, dt, w_ext, w_damp, accepted)
+      import :: integrator_t, model_t, local_lattice_t, halo_t, state_t, wp
+      class(integrator_t), intent(inout) :: this
+      type(model_t), intent(inout) :: model
+      type(local_lattice_t), intent(in) :: lat
+      type(halo_t), intent(inout) :: halo
+      type(state_t), intent(inout) :: st
+      real(wp), intent(in) :: t, dt
+      real(wp), intent(inout) :: w_ext, w_damp
+      logical, intent(out) :: accepted
+    end subroutine integrator_step_i
+
+    !> After a checkpoint was loaded at time t: whatever the integrator must redo so that the
+    !> model's energies are those of the loaded state before the first step's sample.
+    subroutine integrator_resume_i(this, model, lat, halo, st, t)
+      import :: integrator_t, model_t, local_lattice_t, halo_t, state_t, wp
+      class(integrator_t), intent(inout) :: this
+      type(model_t), intent(inout) :: model
+      type(local_lattice_t), intent(in) :: lat
+      type(halo_t), intent(inout) :: halo
+      type(state_t), intent(inout) :: st
+      real(wp), intent(in) :: t
+    end subroutine integrator_resume_i
+  end interface
+
+contains
+
+  !> Set the communicator over which the integrator agrees on a step's acceptance.
+  subroutine integrator_init(this, comm)
+    class(integrator_t), intent(inout) :: this
+    type(MPI_Comm), intent(in) :: comm
+    this%comm = comm
+  end subroutine integrator_init
+end module iem_integrator
