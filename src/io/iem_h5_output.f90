@@ -35,6 +35,10 @@ module iem_h5_output
     integer(i8), allocatable :: run_start(:), run_len(:)
     !> Times of the frames written so far (rank 0 only, for the sidecar); grows by doubling.
     real(wp), allocatable :: frame_times(:)
+    !> Fields each of those frames holds, bits of iem_xdmf's xdmf_field_bit (rank 0 only).
+    integer, allocatable :: frame_fields(:)
+    !> /mesh fields of iem_xdmf's table found in the file when the sidecar was last written.
+    integer :: mesh_fields = 0
     integer(HID_T) :: file_id = -1, frames_id = -1
     integer(HID_T) :: xfer_id = -1, dcpl_id = -1, real_mtype = -1, int_mtype = -1
     !> File space (2, n_nodes) with this rank's nodes selected; memory space (2, n_owned).
@@ -165,7 +169,8 @@ module iem_h5_output
     end subroutine h5_output_write_spring_history
 
     !> Writes a cell field, values(n) for this rank's cells in the order given to write_mesh,
-    !> as /frames/<last frame>/<name> (n_cells values); collective, after write_frame.
+    !> as /frames/<last frame>/<name> (n_cells values); collective, after write_frame. Rank 0
+    !> then rewrites the sidecar, which lists the field if iem_xdmf's table has it.
     module subroutine h5_output_write_cell_field(this, name, values, stat, msg)
       class(h5_output_t), intent(inout) :: this
       character(len=*), intent(in) :: name
@@ -232,10 +237,11 @@ module iem_h5_output
       character(len=:), allocatable, intent(inout) :: msg
     end subroutine dataset_lists
 
-    !> Rank 0 rewrites the sidecar with the frames written so far; collective, so that every
-    !> rank learns of a failure (then stat = h5_output_sidecar_error unless already set).
+    !> Rank 0 rewrites the sidecar with the frames written so far and the /mesh fields the
+    !> open file holds; collective, so that every rank learns of a failure (then
+    !> stat = h5_output_sidecar_error unless already set).
     module subroutine write_sidecar(this, stat, msg)
-      class(h5_output_t), intent(in) :: this
+      class(h5_output_t), intent(inout) :: this
       integer, intent(inout) :: stat
       character(len=:), allocatable, intent(inout) :: msg
     end subroutine write_sidecar

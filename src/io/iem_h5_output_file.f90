@@ -3,7 +3,7 @@
 submodule (iem_h5_output) iem_h5_output_file
   use iem_kinds, only: mpi_i8
   use iem_strings, only: itoa
-  use iem_xdmf, only: xdmf_write, xdmf_path_of
+  use iem_xdmf, only: xdmf_write, xdmf_path_of, xdmf_fields
   use iem_paths, only: mpiio_name
   use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_Bcast, MPI_INTEGER, &
     MPI_LOGICAL, MPI_MAX, MPI_SUM, MPI_INFO_NULL
@@ -13,7 +13,7 @@ submodule (iem_h5_output) iem_h5_output_file
     H5P_DATASET_CREATE_F, H5P_DATASET_XFER_F, H5FD_MPIO_COLLECTIVE_F, H5D_FILL_TIME_NEVER_F, &
     H5F_LIBVER_V18_F, H5F_LIBVER_LATEST_F, h5fcreate_f, h5fclose_f, h5fflush_f, H5F_ACC_TRUNC_F, &
     H5F_ACC_EXCL_F, H5F_SCOPE_GLOBAL_F, h5gcreate_f, h5gclose_f, h5screate_simple_f, h5aopen_f, &
-    h5awrite_f, h5aclose_f, H5T_NATIVE_INTEGER, H5T_STD_I64LE, H5T_IEEE_F64LE
+    h5awrite_f, h5aclose_f, H5T_NATIVE_INTEGER, H5T_STD_I64LE, H5T_IEEE_F64LE, h5lexists_f
   use iem_h5_layout, only: energy_names, static_names
   use iem_h5_primitives, only: failed, put_attr, create_series, select_runs, make_mem_space, &
     close_space, close_dset, gid_runs, one
@@ -93,7 +93,10 @@ contains
       this%probe_path(p) = '/history/probes/'//trim(probe_names(p))
     end do
     if (allocated(this%frame_times)) deallocate (this%frame_times)
-    allocate (this%frame_times(16))
+    if (allocated(this%frame_fields)) deallocate (this%frame_fields)
+    allocate (this%frame_times(16), this%frame_fields(16))
+    this%frame_fields = 0
+    this%mesh_fields = 0
 
     fapl = -1
     hist_id = -1
@@ -310,12 +313,26 @@ contains
   !> Documented at its interface in iem_h5_output.f90.
   module procedure write_sidecar
     character(len=:), allocatable :: xmsg
-    integer :: xstat
+    integer :: xstat, k, ierr
+    logical :: exists
 
+    ! The /mesh fields of the table that the file holds now (a closed file keeps the last
+    ! answer). Every rank asks: metadata reads are collective.
+    if (this%is_open) then
+      call h5lexists_f(this%file_id, 'mesh', exists, ierr)
+      if (ierr == 0 .and. exists) then
+        do k = 1, size(xdmf_fields)
+          if (xdmf_fields(k)%per_frame .or. btest(this%mesh_fields, k - 1)) cycle
+          call h5lexists_f(this%file_id, 'mesh/'//trim(xdmf_fields(k)%name), exists, ierr)
+          if (ierr == 0 .and. exists) this%mesh_fields = ibset(this%mesh_fields, k - 1)
+        end do
+      end if
+    end if
     xstat = 0
     if (this%rank == 0 .and. stat == 0) then
       call xdmf_write(this%xmf_path, this%h5_name, this%n_nodes, this%n_cells, &
-        this%frame_times(:this%n_frames), xstat, xmsg)
+        this%frame_times(:this%n_frames), this%frame_fields(:this%n_frames), this%mesh_fields, &
+        xstat, xmsg)
     end if
     call MPI_Bcast(xstat, 1, MPI_INTEGER, 0, this%comm)
     if (xstat == 0 .or. stat /= 0) return

@@ -1,11 +1,12 @@
 !> /frames: one group of node fields (displacement, velocity) and cell fields a
-!> frame, and the series /frames/time and /frames/step.
+!> frame, and the series /frames/time and /frames/step; the sidecar lists what each frame holds.
 submodule (iem_h5_output) iem_h5_output_frames
   use iem_strings, only: itoa
-  use iem_xdmf, only: xdmf_frame_name
+  use iem_xdmf, only: xdmf_frame_name, xdmf_field_bit, xdmf_xyz_suffix
   use hdf5, only: HSIZE_T, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5gcreate_f, h5gopen_f, h5gclose_f, &
     h5dcreate_f, h5dwrite_f, h5dclose_f, h5screate_simple_f, h5scopy_f, h5sselect_none_f, &
-    H5T_IEEE_F64LE
+    H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, h5pcreate_f, h5pclose_f, H5P_DATASET_CREATE_F, &
+    h5pset_fill_value_f, h5pset_virtual_f, h5sselect_hyperslab_f, H5S_SELECT_SET_F, h5sclose_f
   use iem_h5_primitives, only: failed, put_attr, prepare_append, select_runs, make_mem_space, &
     close_space, one
   implicit none
@@ -17,6 +18,7 @@ contains
     ! u, v: (2, n_owned) in owned_gids order. Collective; rank 0 then rewrites the sidecar.
     character(len=:), allocatable :: name, where
     real(wp), allocatable :: grown(:)
+    integer, allocatable :: grown_fields(:)
     integer(HID_T) :: gid, fspace, mspace
     integer :: ierr
     logical :: shapes_ok
@@ -45,6 +47,8 @@ contains
       call write_node_field(this, gid, where//'/displacement', 'displacement', u, shapes_ok, &
         stat, msg)
       call write_node_field(this, gid, where//'/velocity', 'velocity', v, shapes_ok, stat, msg)
+      call write_xyz_view(this, gid, where, 'displacement', stat, msg)
+      call write_xyz_view(this, gid, where, 'velocity', stat, msg)
       if (stat /= 0) exit work
 
       call prepare_append(this%path, this%rank, this%frames_time_id, '/frames/time', 0, &
@@ -82,8 +86,14 @@ contains
           allocate (grown(2*size(this%frame_times)))
           grown(:size(this%frame_times)) = this%frame_times
           call move_alloc(grown, this%frame_times)
+          allocate (grown_fields(size(this%frame_times)))
+          grown_fields = 0
+          grown_fields(:size(this%frame_fields)) = this%frame_fields
+          call move_alloc(grown_fields, this%frame_fields)
         end if
         this%frame_times(this%n_frames) = time
+        this%frame_fields(this%n_frames) = ior(xdmf_field_bit('displacement'), &
+                                               xdmf_field_bit('velocity'))
       end if
     end if
     call write_sidecar(this, stat, msg)
@@ -139,6 +149,53 @@ contains
     call close_space(this%path, mspace, stat, msg)
   end subroutine write_node_field
 
+  !> Adds <name>_xyz to group `gid` (path `where`): a virtual dataset (n_nodes, 3) whose first
+  !> two columns are the node vector <name> (n_nodes, 2) of the same group and whose third is
+  !> 0, so that ParaView reads a 3-component vector. It takes no room for data. Collective;
+  !> no-op if stat /= 0.
+  subroutine write_xyz_view(this, gid, where, name, stat, msg)
+    class(h5_output_t), intent(in) :: this
+    integer(HID_T), intent(in) :: gid
+    character(len=*), intent(in) :: where, name
+    integer, intent(inout) :: stat
+    character(len=:), allocatable, intent(inout) :: msg
+    character(len=:), allocatable :: view
+    integer(HID_T) :: dcpl, vspace, sspace, did
+    integer :: ierr
+
+    if (stat /= 0) return
+    view = where//'/'//name//xdmf_xyz_suffix
+    dcpl = -1
+    vspace = -1
+    sspace = -1
+    did = -1
+    work: block
+      call h5screate_simple_f(2, [3_HSIZE_T, int(this%n_nodes, HSIZE_T)], vspace, ierr)
+      if (failed(this%path, ierr, 'h5screate_simple_f', view, stat, msg)) exit work
+      call h5sselect_hyperslab_f(vspace, H5S_SELECT_SET_F, [0_HSIZE_T, 0_HSIZE_T], &
+        [2_HSIZE_T, int(this%n_nodes, HSIZE_T)], ierr)
+      if (failed(this%path, ierr, 'h5sselect_hyperslab_f', view, stat, msg)) exit work
+      call h5screate_simple_f(2, [2_HSIZE_T, int(this%n_nodes, HSIZE_T)], sspace, ierr)
+      if (failed(this%path, ierr, 'h5screate_simple_f', view, stat, msg)) exit work
+      call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, ierr)
+      if (failed(this%path, ierr, 'h5pcreate_f', view, stat, msg)) exit work
+      call h5pset_fill_value_f(dcpl, H5T_NATIVE_DOUBLE, 0.0_wp, ierr)
+      if (failed(this%path, ierr, 'h5pset_fill_value_f', view, stat, msg)) exit work
+      ! source '.': this file
+      call h5pset_virtual_f(dcpl, vspace, '.', where//'/'//name, sspace, ierr)
+      if (failed(this%path, ierr, 'h5pset_virtual_f', view, stat, msg)) exit work
+      call h5dcreate_f(gid, name//xdmf_xyz_suffix, H5T_IEEE_F64LE, vspace, did, ierr, dcpl)
+      if (failed(this%path, ierr, 'h5dcreate_f', view, stat, msg)) exit work
+    end block work
+    if (did >= 0) then
+      call h5dclose_f(did, ierr)
+      if (failed(this%path, ierr, 'h5dclose_f', view, stat, msg)) continue
+    end if
+    if (dcpl >= 0) call h5pclose_f(dcpl, ierr)
+    if (vspace >= 0) call h5sclose_f(vspace, ierr)
+    if (sspace >= 0) call h5sclose_f(sspace, ierr)
+  end subroutine write_xyz_view
+
   !> Documented at its interface in iem_h5_output.f90.
   module procedure h5_output_write_cell_field
     character(len=:), allocatable :: where, frame
@@ -176,6 +233,14 @@ contains
     if (gid >= 0) call h5gclose_f(gid, ierr)
     call close_space(this%path, fspace, stat, msg)
     call close_space(this%path, mspace, stat, msg)
+    if (stat == 0) then
+      ! readable before the sidecar names it
+      call h5fflush_f(this%file_id, H5F_SCOPE_GLOBAL_F, ierr)
+      if (failed(this%path, ierr, 'h5fflush_f', '/', stat, msg)) continue
+    end if
+    if (stat == 0 .and. this%rank == 0) this%frame_fields(this%n_frames) = &
+      ior(this%frame_fields(this%n_frames), xdmf_field_bit(name))
+    call write_sidecar(this, stat, msg)
   end procedure h5_output_write_cell_field
 
 end submodule iem_h5_output_frames

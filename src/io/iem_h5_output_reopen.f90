@@ -2,7 +2,7 @@
 !> (cut back to what its checkpoint covers) and /continuations.
 submodule (iem_h5_output) iem_h5_output_reopen
   use iem_strings, only: itoa
-  use iem_xdmf, only: xdmf_frame_name, xdmf_path_of
+  use iem_xdmf, only: xdmf_frame_name, xdmf_path_of, xdmf_fields
   use iem_paths, only: mpiio_name
   use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_Bcast, MPI_CHARACTER
   use hdf5, only: HSIZE_T, h5pclose_f, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5fopen_f, &
@@ -123,6 +123,20 @@ contains
           [int(n_frames, HSIZE_T)], ierr)
         if (failed(this%path, ierr, 'h5dread_f', '/frames/time', stat, msg)) exit work
       end if
+      ! and the fields each kept frame holds
+      if (allocated(this%frame_fields)) deallocate (this%frame_fields)
+      allocate (this%frame_fields(size(this%frame_times)))
+      this%frame_fields = 0
+      this%mesh_fields = 0
+      do have = 1, n_frames
+        frame = xdmf_frame_name(have - 1)
+        do k = 1, size(xdmf_fields)
+          if (.not. xdmf_fields(k)%per_frame) cycle
+          call h5lexists_f(this%frames_id, frame//'/'//trim(xdmf_fields(k)%name), exists, ierr)
+          if (failed(this%path, ierr, 'h5lexists_f', '/frames/'//frame, stat, msg)) exit work
+          if (exists) this%frame_fields(have) = ibset(this%frame_fields(have), k - 1)
+        end do
+      end do
 
       call h5screate_simple_f(2, [2_HSIZE_T, int(n_nodes, HSIZE_T)], this%node_fspace, ierr)
       if (failed(this%path, ierr, 'h5screate_simple_f', 'node file space', stat, msg)) exit work
