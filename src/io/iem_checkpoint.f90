@@ -1,9 +1,11 @@
 !> Checkpoint files: the whole state of a dynamic run in one binary file written with MPI-IO,
 !> in global node and cell order, so a run can continue from it on any number of ranks.
-!> Layout (format version 2; native byte order, doubles and 64-bit integers, all 8-byte words):
+!> Layout (format version 3; native byte order, doubles and 64-bit integers, all 8-byte words):
 !>   bytes 0-511: 64 integers (header_ints), bytes 512-1023: 64 reals (header_reals),
 !>   bytes 1024-8191: zeros;
-!>   from byte 8192: (w_ext, w_damp) of each rank that wrote the file;
+!>   from byte 8192: the exact external work and damping dissipation of each rank that wrote
+!>   the file (energy_words doubles a rank: each accumulator's packed state, iem_exact_sum,
+!>   every value an integer below 2^53 held exactly as a double);
 !>   then one record per node (global order): y(1:n_state), acc(1:n_state-2);
 !>   then, with nonlinear springs, one record per cell (global order): for each of its 12
 !>   springs strain, stress, dir, count, e_max_pos, e_max_neg, work, e_rev(1:D), s_rev(1:D).
@@ -30,6 +32,7 @@ module iem_checkpoint
                      MPI_IN_PLACE
   use iem_kinds, only: wp, i8
   use iem_strings, only: itoa
+  use iem_exact_sum, only: exact_sum_t, exact_sum_packed_size
   implicit none
   private
   public :: checkpoint_header_t, checkpoint_write, checkpoint_read_header, checkpoint_verify
@@ -37,7 +40,9 @@ module iem_checkpoint
 
   integer(i8), parameter :: checkpoint_magic = 4915430829614186819_i8  ! 'CHKPTIEM' as bytes
   !> The format this iem writes and reads (1: before the checksum).
-  integer(i8), parameter :: checkpoint_version = 2
+  integer(i8), parameter :: checkpoint_version = 3
+  !> Words of each rank's energy slot: the packed external-work and damping accumulators.
+  integer, parameter, public :: energy_words = 2*exact_sum_packed_size
   integer(i8), parameter :: header_bytes = 8192_i8, n_header = 64
   !> Word index of the checksum in the file (0-based).
   integer(i8), parameter :: checksum_word = 16
@@ -90,7 +95,7 @@ contains
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
     type(checkpoint_header_t), intent(in) :: h
-    real(wp), intent(in) :: energy(2)
+    real(wp), intent(in) :: energy(energy_words)
     integer(i8), intent(in) :: owned_gids(:), cell_gids(:)
     real(wp), intent(inout) :: node_rec(:, :), cell_rec(:, :)
     integer, intent(out) :: stat
@@ -104,7 +109,7 @@ contains
 
     call MPI_Comm_rank(comm, rank)
     call record_sizes(h, rec_n, rec_c)
-    off_n = header_bytes + 16_MPI_OFFSET_KIND*h%n_ranks
+    off_n = header_bytes + 8_MPI_OFFSET_KIND*energy_words*h%n_ranks
     off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
     ! the checksum: every rank hashes the words it writes (rank 0 the header, its checksum
     ! word as 0, and the zeros after it)
@@ -118,7 +123,8 @@ contains
         sum = ieor(sum, word_hash(w, 0_i8))
       end do
     end if
-    sum = ieor(sum, words_hash(header_bytes/8 + 2*rank, transfer(energy, 0_i8, 2)))
+    sum = ieor(sum, words_hash(header_bytes/8 + int(energy_words, i8)*rank, &
+                               transfer(energy, 0_i8, energy_words)))
     sum = ieor(sum, records_hash(off_n/8, rec_n, owned_gids, node_rec))
     if (rec_c > 0) sum = ieor(sum, records_hash(off_c/8, rec_c, cell_gids, cell_rec))
     call MPI_Allreduce(MPI_IN_PLACE, sum, 1, MPI_INTEGER8, MPI_BXOR, comm)
@@ -135,8 +141,8 @@ contains
     if (rank == 0) call MPI_File_write_at(fh, int(8*n_header, MPI_OFFSET_KIND), &
                                           header_reals(hc), int(n_header), &
                                           MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
-    call MPI_File_write_at(fh, header_bytes + 16_MPI_OFFSET_KIND*rank, energy, 2, &
-                           MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr2)
+    call MPI_File_write_at(fh, header_bytes + 8_MPI_OFFSET_KIND*energy_words*rank, energy, &
+                           energy_words, MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr2)
     ierr = max(ierr, ierr2)
     call transfer_records(fh, off_n, rec_n, owned_gids, node_rec, .true., ierr2)
     ierr = max(ierr, ierr2)
@@ -320,14 +326,17 @@ contains
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
     type(checkpoint_header_t), intent(in) :: h
-    real(wp), intent(out) :: energy(2)
+    real(wp), intent(out) :: energy(energy_words)
     integer(i8), intent(in) :: owned_gids(:), cell_gids(:)
     real(wp), intent(out) :: node_rec(:, :), cell_rec(:, :)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     type(MPI_File) :: fh
-    integer :: rank, n_ranks, ierr, ierr2, rec_n, rec_c, worst
+    integer :: rank, n_ranks, ierr, ierr2, rec_n, rec_c, worst, r, q
     integer(MPI_OFFSET_KIND) :: off_n, off_c
+    real(wp), allocatable :: all_slots(:, :)
+    type(exact_sum_t) :: total(2), one
+    integer(i8) :: packed(exact_sum_packed_size)
     call MPI_Comm_rank(comm, rank)
     call MPI_Comm_size(comm, n_ranks)
     call record_sizes(h, rec_n, rec_c)
@@ -343,12 +352,26 @@ contains
     end if
     ierr = 0
     if (h%n_ranks == n_ranks) then
-      call MPI_File_read_at(fh, header_bytes + 16_MPI_OFFSET_KIND*rank, energy, 2, &
-                            MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
+      call MPI_File_read_at(fh, header_bytes + 8_MPI_OFFSET_KIND*energy_words*rank, energy, &
+                            energy_words, MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
     else if (rank == 0) then
-      energy = [h%w_ext, h%w_damp]
+      ! another rank count: rank 0 takes the exact sum of every writer's accumulators
+      allocate(all_slots(energy_words, h%n_ranks))
+      call MPI_File_read_at(fh, header_bytes, all_slots, energy_words*int(h%n_ranks), &
+                            MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
+      do q = 1, 2
+        call total(q)%reset()
+        do r = 1, int(h%n_ranks)
+          packed = int(all_slots((q - 1)*exact_sum_packed_size + 1:q*exact_sum_packed_size, &
+                                 r), i8)
+          call one%unpack(packed)
+          call total(q)%merge(one)
+        end do
+        call total(q)%pack(packed)
+        energy((q - 1)*exact_sum_packed_size + 1:q*exact_sum_packed_size) = real(packed, wp)
+      end do
     end if
-    off_n = header_bytes + 16_MPI_OFFSET_KIND*h%n_ranks
+    off_n = header_bytes + 8_MPI_OFFSET_KIND*energy_words*h%n_ranks
     off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
     call transfer_records(fh, off_n, rec_n, owned_gids, node_rec, .false., ierr2)
     ierr = max(ierr, ierr2)
@@ -455,7 +478,7 @@ contains
     type(checkpoint_header_t), intent(in) :: h
     integer :: rec_n, rec_c
     call record_sizes(h, rec_n, rec_c)
-    file_bytes = header_bytes + 16*h%n_ranks + 8*(rec_n*h%n_nodes + rec_c*h%n_cells)
+    file_bytes = header_bytes + 8*energy_words*h%n_ranks + 8*(rec_n*h%n_nodes + rec_c*h%n_cells)
   end function file_bytes
 
   !> The hash of word w at word index i of the file: two 32-bit lanes mixed with murmur3's

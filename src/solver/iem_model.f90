@@ -15,6 +15,7 @@ module iem_model
   use iem_constants, only: pi
   use iem_stable_dt, only: capped_beta
   use iem_alloc_guard, only: alloc_guard_t
+  use iem_exact_sum, only: exact_sum_t
   implicit none
   private
   public :: model_t
@@ -60,12 +61,22 @@ module iem_model
     real(wp), allocatable :: fext(:, :)
     !> Strain energy of the counted cells at the last rate evaluation.
     real(wp) :: energy = 0.0_wp
+    !> The terms of the last rate evaluation, kept so that global sums are exact and so
+    !> independent of the partition: each local cell's energy and damping power (the latter
+    !> only with stiffness damping), each owned node's mass-damping power (only with mass
+    !> damping), the power of each loaded node's loads and of each prescribed dof's reaction.
+    real(wp), allocatable :: en_cell(:), pw_cell(:), pw_node(:), pe_slot(:), pr_bc(:)
+    !> External work and damping dissipation of this rank since the start: exact sums of the
+    !> weighted terms of every evaluation the integrator counts (add_work).
+    type(exact_sum_t) :: w_ext_acc, w_damp_acc
   contains
     procedure :: init => model_init
     procedure :: rate => model_rate
     procedure :: prescribe => model_prescribe
     procedure :: kinetic_energy => model_kinetic_energy
     procedure :: strain_energy => model_strain_energy
+    procedure :: add_work => model_add_work
+    procedure :: energy_sums => model_energy_sums
   end type model_t
 
 contains
@@ -245,6 +256,21 @@ contains
       end do
     end do
     call index_loaded_nodes(this, lat%n_owned)
+    allocate(this%en_cell(lat%n_cells), this%pw_cell(merge(lat%n_cells, 0, this%beta > 0.0_wp)), &
+             this%pw_node(merge(lat%n_owned, 0, this%alpha > 0.0_wp)), &
+             this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), stat=ierr)
+    call g%note(ierr, 'the energy terms of the rank', 8.0_wp*lat%n_cells)
+    if (g%failed) then
+      call g%pass(guard)
+      return
+    end if
+    this%en_cell = 0.0_wp
+    this%pw_cell = 0.0_wp
+    this%pw_node = 0.0_wp
+    this%pe_slot = 0.0_wp
+    this%pr_bc = 0.0_wp
+    call this%w_ext_acc%reset()
+    call this%w_damp_acc%reset()
   end subroutine model_init
 
   !> The slots of the loaded nodes (ascending node order) for the compact external forces.
@@ -316,17 +342,20 @@ contains
       if (this%mixed) then
         call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
                          this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
-                         lat%cell_mat)
+                         lat%cell_mat, this%en_cell, this%pw_cell)
       else
         call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                         this%energy, p_damp, this%n_state - 1, this%nl, accept)
+                         this%energy, p_damp, this%n_state - 1, this%nl, accept, &
+                         cell_energy=this%en_cell, cell_power=this%pw_cell)
       end if
     else if (this%mixed) then
       call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                       this%energy, p_damp, this%n_state - 1, ks=this%ks, cell_mat=lat%cell_mat)
+                       this%energy, p_damp, this%n_state - 1, ks=this%ks, cell_mat=lat%cell_mat, &
+                       cell_energy=this%en_cell, cell_power=this%pw_cell)
     else
       call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                       this%energy, p_damp, this%n_state - 1)
+                       this%energy, p_damp, this%n_state - 1, cell_energy=this%en_cell, &
+                       cell_power=this%pw_cell)
     end if
     ! external loads: rebuilt only when a time function has changed
     changed = .false.
@@ -352,19 +381,22 @@ contains
       l = this%ext_node(s)
       f = this%f(:, l) + this%alpha*this%mass(l)*y(3:4, l)
       acc(1:2, l) = (this%fext(:, s) - f)/this%mass(l)
-      p_ext = p_ext + this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
+      this%pe_slot(s) = this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
+      p_ext = p_ext + this%pe_slot(s)
     end do
     ! prescribed dofs: imposed acceleration; the support reaction does work
     do n = 1, size(this%bc_node)
       l = this%bc_node(n)
       comp = this%bc_comp(n)
       b = this%bc_id(n)
+      this%pr_bc(n) = 0.0_wp
       if (t >= this%bc_release(b)) cycle
       acc(comp, l) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
       if (y(2 + comp, l) /= 0.0_wp) then
         r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + this%f(comp, l)
         if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
-        p_ext = p_ext + r*y(2 + comp, l)
+        this%pr_bc(n) = r*y(2 + comp, l)
+        p_ext = p_ext + this%pr_bc(n)
       end if
     end do
     ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
@@ -376,10 +408,54 @@ contains
     ! damping power: stiffness-proportional from the cells, mass-proportional on owned nodes
     if (this%alpha > 0.0_wp) then
       do l = 1, lat%n_owned
-        p_damp = p_damp + this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
+        this%pw_node(l) = this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
+        p_damp = p_damp + this%pw_node(l)
       end do
     end if
   end subroutine model_rate
+
+  !> Add the powers of the last rate evaluation, each times wdt (its weight in the time
+  !> integral of the step), to the external work and the damping dissipation, exactly; the
+  !> cells counted are this rank's (lat: the lattice of the evaluation).
+  subroutine model_add_work(this, lat, wdt)
+    class(model_t), intent(inout) :: this
+    type(local_lattice_t), intent(in) :: lat
+    real(wp), intent(in) :: wdt
+    integer :: c, l, n
+    do n = 1, size(this%pe_slot)
+      call this%w_ext_acc%add(wdt*this%pe_slot(n))
+    end do
+    do n = 1, size(this%pr_bc)
+      call this%w_ext_acc%add(wdt*this%pr_bc(n))
+    end do
+    if (size(this%pw_cell) > 0) then
+      do c = 1, lat%n_cells
+        if (lat%cell_nodes(1, c) <= lat%n_owned) call this%w_damp_acc%add(wdt*this%pw_cell(c))
+      end do
+    end if
+    do l = 1, size(this%pw_node)
+      call this%w_damp_acc%add(wdt*this%pw_node(l))
+    end do
+  end subroutine model_add_work
+
+  !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of
+  !> the last rate evaluation (counted cells), the external work and the damping dissipation,
+  !> in sums(1:4), for an exact global sum (exact_sum_allreduce).
+  subroutine model_energy_sums(this, lat, y, sums)
+    class(model_t), intent(in) :: this
+    type(local_lattice_t), intent(in) :: lat
+    real(wp), intent(in) :: y(:, :)
+    type(exact_sum_t), intent(out) :: sums(4)
+    integer :: l, c
+    do l = 1, lat%n_owned
+      call sums(1)%add(0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2))
+    end do
+    do c = 1, lat%n_cells
+      if (lat%cell_nodes(1, c) <= lat%n_owned) call sums(2)%add(this%en_cell(c))
+    end do
+    sums(3) = this%w_ext_acc
+    sums(4) = this%w_damp_acc
+  end subroutine model_energy_sums
 
   !> Kinetic energy of the owned nodes.
   real(wp) function model_kinetic_energy(this, y) result(e)

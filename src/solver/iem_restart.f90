@@ -5,9 +5,10 @@ submodule (iem_simulation) iem_restart
   use mpi_f08, only: MPI_Bcast, MPI_SUM, MPI_INTEGER8
   use iem_kinds, only: mpi_wp
   use iem_checkpoint, only: checkpoint_write, checkpoint_read_header, checkpoint_verify, &
-                            checkpoint_read, word_hash
+                            checkpoint_read, word_hash, energy_words
   use iem_h5_inspect, only: h5_output_inspect
   use iem_alloc_guard, only: alloc_guard_t
+  use iem_exact_sum, only: exact_sum_t, exact_sum_allreduce, exact_sum_packed_size
   implicit none
 
 contains
@@ -84,7 +85,9 @@ contains
     type(checkpoint_header_t) :: h
     real(wp), allocatable :: nodes(:, :), cells(:, :)
     integer(i8), allocatable :: cg(:)
-    real(wp) :: sums(2)
+    type(exact_sum_t) :: acc(2)
+    integer(i8) :: packed(exact_sum_packed_size, 2)
+    real(wp) :: slot(energy_words)
     integer :: l, ns, c, n, ierr
     type(alloc_guard_t) :: guard
     call flush_history(this, stat)
@@ -113,10 +116,15 @@ contains
     h%e0 = this%e0
     h%e_scale = this%e_scale
     h%last_balance = this%last_balance
-    sums = [this%w_ext, this%w_damp]
-    call MPI_Allreduce(MPI_IN_PLACE, sums, 2, mpi_wp(), MPI_SUM, this%comm)
-    h%w_ext = sums(1)
-    h%w_damp = sums(2)
+    ! the header records the global work rounded (for people); the exact state of each rank's
+    ! accumulators goes in its slot
+    acc = [this%model%w_ext_acc, this%model%w_damp_acc]
+    call exact_sum_allreduce(acc, this%comm)
+    h%w_ext = acc(1)%value()
+    h%w_damp = acc(2)%value()
+    call this%model%w_ext_acc%pack(packed(:, 1))
+    call this%model%w_damp_acc%pack(packed(:, 2))
+    slot = real(reshape(packed, [energy_words]), wp)
     h%stop_signal = sig
     h%last_sample = this%last_sample
     h%last_frame_time = this%last_frame_time
@@ -146,7 +154,7 @@ contains
       allocate(cells(0, 0))
     end if
     call checkpoint_write(trim(this%cfg%run%checkpoint_file), this%comm, h, &
-                          [this%w_ext, this%w_damp], this%lat%gid(1:n), nodes, cg, cells, &
+                          slot, this%lat%gid(1:n), nodes, cg, cells, &
                           stat, msg)
     if (stat == 0) call log_info('checkpoint: '//trim(this%cfg%run%checkpoint_file)// &
                                  ' at step '//itoa(k)//', t = '//rtoa(t)//' s')
@@ -175,7 +183,7 @@ contains
   module procedure load_checkpoint
     real(wp), allocatable :: nodes(:, :), cells(:, :)
     integer(i8), allocatable :: cg(:)
-    real(wp) :: energy(2)
+    real(wp) :: energy(energy_words)
     integer :: l, ns, n, d, j, i, o
     ns = this%model%n_state
     n = this%lat%n_owned
@@ -201,8 +209,8 @@ contains
       this%st%y(1:ns, l) = nodes(1:ns, l)
       this%st%acc(:, l) = nodes(ns + 1:, l)
     end do
-    this%w_ext = energy(1)
-    this%w_damp = energy(2)
+    call this%model%w_ext_acc%unpack(int(energy(1:exact_sum_packed_size), i8))
+    call this%model%w_damp_acc%unpack(int(energy(exact_sum_packed_size + 1:), i8))
     this%e0 = this%restart%e0
     this%e_scale = this%restart%e_scale
     this%last_balance = this%restart%last_balance

@@ -124,6 +124,7 @@ contains
       st%ys(3:ns, l) = st%y(3:ns, l) + frac(2)*dt*st%acc(:, l)
     end do
     w_ext = w_ext + weight(1)*dt*st%p_ext1
+    call model%add_work(lat, weight(1)*dt)
     w_damp = w_damp + weight(1)*dt*st%p_damp1
     do stage = 2, 4
       call model%prescribe(st%ys, t + frac(stage)*dt)
@@ -136,6 +137,7 @@ contains
       call timer_stop(t_force)
       call timer_start(t_update)
       w_ext = w_ext + weight(stage)*dt*p_ext
+      call model%add_work(lat, weight(stage)*dt)
       w_damp = w_damp + weight(stage)*dt*p_damp
       do l = 1, n
         st%ynew(1:2, l) = st%ynew(1:2, l) + weight(stage)*dt*st%ys(3:4, l)

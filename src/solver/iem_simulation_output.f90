@@ -8,6 +8,7 @@ submodule (iem_simulation) iem_simulation_output
   use iem_cell_kernel, only: cell_strain_measures
   use iem_nonlinear_springs, only: springs_per_cell, spring_kind, spring_strains
   use iem_build_info, only: iem_version
+  use iem_exact_sum, only: exact_sum_t, exact_sum_allreduce
   implicit none
 
 contains
@@ -111,6 +112,7 @@ contains
   module procedure record_sample
     integer :: p, np, b, stat, o
     real(wp) :: ke, se, e, scale
+    type(exact_sum_t) :: sums(4)
 
     np = size(this%probe_gid)
     this%sample = 0.0_wp
@@ -131,6 +133,16 @@ contains
       o = o + 2*springs_per_cell
     end do
     call MPI_Allreduce(MPI_IN_PLACE, this%sample, size(this%sample), mpi_wp(), MPI_SUM, this%comm)
+    ! the energies as exact sums over nodes, cells and evaluations: the same bits on any
+    ! number of ranks and partition (a static run's work comes from its load steps)
+    call this%model%energy_sums(this%lat, this%st%y, sums)
+    call exact_sum_allreduce(sums, this%comm)
+    this%sample(1) = sums(1)%value()
+    this%sample(2) = sums(2)%value()
+    if (.not. this%static) then
+      this%sample(3) = sums(3)%value()
+      this%sample(4) = sums(4)%value()
+    end if
     diverged = .not. all(ieee_is_finite(this%sample))
     if (diverged) return
     if (this%n_buf == size(this%h_time)) call flush_history(this, stat)

@@ -145,6 +145,7 @@ contains
     ! the powers are those of the half-step velocity: exact work of constant forces
     w_ext = w_ext + dt*p_ext
     w_damp = w_damp + dt*p_damp
+    call model%add_work(lat, dt)
     ! kick: v(t + dt)
     do l = 1, n
       st%y(3:4, l) = st%y(3:4, l) + h*st%acc(1:2, l)

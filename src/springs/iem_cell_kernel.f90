@@ -86,8 +86,11 @@ contains
   !> dissipated), and stiffness damping uses the initial (elastic) stiffness. With ks and
   !> cell_mat (several materials), cell c follows the constants ks(cell_mat(c)) (and its
   !> material's nonlinear law); k then gives only the geometry (lx, ly, il0), the same for all.
+  !> With cell_energy and cell_power (one entry a cell; an empty array: not kept), each
+  !> cell's energy and damping power are also stored (for sums that do not depend on how
+  !> the cells are split among ranks).
   pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
-                              nl, commit, ks, cell_mat)
+                              nl, commit, ks, cell_mat, cell_energy, cell_power)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: cell_nodes(:, :)
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
@@ -99,12 +102,17 @@ contains
     logical, intent(in), optional :: commit
     type(cell_constants_t), intent(in), optional :: ks(:)
     integer, intent(in), optional :: cell_mat(:)
+    real(wp), intent(out), optional :: cell_energy(:), cell_power(:)
     real(wp) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4), px(chunk, 4), py(chunk, 4)
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
     integer :: c0, m, c, q, nc, node, row
-    logical :: damped, filtered, accept
+    logical :: damped, filtered, accept, keep_energy, keep_power
 
     nc = size(cell_nodes, 2)
+    keep_energy = .false.
+    keep_power = .false.
+    if (present(cell_energy)) keep_energy = size(cell_energy) >= nc
+    if (present(cell_power)) keep_power = size(cell_power) >= nc
     accept = .false.
     if (present(commit)) accept = commit
     damped = beta > 0.0_wp
@@ -167,6 +175,8 @@ contains
           damp_power = damp_power + pw(c)
         end if
       end do
+      if (keep_energy) cell_energy(c0:c0 + m - 1) = en(1:m)
+      if (keep_power) cell_power(c0:c0 + m - 1) = pw(1:m)
     end do
   end subroutine cell_forces
 
