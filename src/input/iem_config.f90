@@ -1,6 +1,6 @@
 !> Validated run configuration: what the namelist says, in types that travel together.
 module iem_config
-  use iem_kinds, only: wp
+  use iem_kinds, only: wp, i8
   implicit none
   private
   public :: config_t, run_config_t, geometry_config_t, material_config_t
@@ -35,6 +35,10 @@ module iem_config
     character(len=path_len) :: restart = ''
     character(len=path_len) :: output_file = 'iem_out.h5'
     logical :: overwrite = .false.
+    !> Recompute the partition at the top of this step (METIS with the nodes of the left half
+    !> of the grid ten times heavier) and move the state with it: the migration that load
+    !> balancing will use, exposed to test it (0: never).
+    integer(i8) :: repartition_step = 0
   end type run_config_t
 
   !> The background grid of rectangular cells and what fills it (&geometry): the rectangle

@@ -1,6 +1,6 @@
 !> Readers of the groups that control a run: &run, &static and &initial.
 module iem_input_control
-  use iem_kinds, only: wp
+  use iem_kinds, only: wp, i8
   use iem_constants, only: unset_real
   use iem_strings, only: itoa, rtoa, lower
   use iem_config, only: config_t, path_len
@@ -23,12 +23,14 @@ contains
     real(wp) :: t_end, dt, dt_safety, output_interval, history_interval, progress_interval
     real(wp) :: energy_warn, energy_stop, checkpoint_interval
     integer :: check_interval
+    integer(i8) :: repartition_step
     character(len=path_len) :: output_file, checkpoint_file, restart
     logical :: overwrite, allow_unstable_dt
     character(len=256) :: m
     namelist /run/ analysis, integrator, t_end, dt, dt_safety, output_interval, &
       history_interval, progress_interval, output_file, overwrite, energy_warn, energy_stop, &
-      check_interval, allow_unstable_dt, checkpoint_interval, checkpoint_file, restart
+      check_interval, allow_unstable_dt, checkpoint_interval, checkpoint_file, restart, &
+      repartition_step
     analysis = cfg%run%analysis; integrator = cfg%run%integrator
     t_end = unset_real; dt = cfg%run%dt
     dt_safety = cfg%run%dt_safety; output_interval = cfg%run%output_interval
@@ -38,6 +40,7 @@ contains
     check_interval = cfg%run%check_interval; allow_unstable_dt = cfg%run%allow_unstable_dt
     checkpoint_interval = cfg%run%checkpoint_interval
     checkpoint_file = cfg%run%checkpoint_file; restart = cfg%run%restart
+    repartition_step = cfg%run%repartition_step
     m = ''
     read(chunk, nml=run, iostat=ios, iomsg=m)
     iomsg = trim(m)
@@ -50,6 +53,7 @@ contains
     cfg%run%check_interval = check_interval; cfg%run%allow_unstable_dt = allow_unstable_dt
     cfg%run%checkpoint_interval = checkpoint_interval
     cfg%run%checkpoint_file = checkpoint_file; cfg%run%restart = restart
+    cfg%run%repartition_step = repartition_step
   end subroutine parse_run
 
   !> Check, parse and validate group g (&run) of the input into the configuration.
@@ -65,7 +69,7 @@ contains
     call check_keys(text, g, [character(len=20) :: 'analysis', 'integrator', 't_end', 'dt', &
       'dt_safety', 'output_interval', 'history_interval', 'progress_interval', 'output_file', &
       'overwrite', 'energy_warn', 'energy_stop', 'check_interval', 'allow_unstable_dt', &
-      'checkpoint_interval', 'checkpoint_file', 'restart'], label, stat, msg)
+      'checkpoint_interval', 'checkpoint_file', 'restart', 'repartition_step'], label, stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     call parse_run(chunk, cfg, stat, iomsg)
@@ -131,6 +135,9 @@ contains
       else if (r%check_interval < 1) then
         call bad(label, 'check_interval', itoa(r%check_interval), 'must be >= 1 [steps]', &
                  stat, msg)
+      else if (r%repartition_step < 0) then
+        call bad(label, 'repartition_step', itoa(r%repartition_step), 'must be >= 0 [steps] '// &
+                 '(0: never)', stat, msg)
       else if (len_trim(r%output_file) == 0) then
         call bad(label, 'output_file', "''", 'must name a file', stat, msg)
       end if
@@ -162,7 +169,8 @@ contains
     character(len=:), allocatable :: name
     character(len=*), parameter :: vars(*) = [character(len=19) :: 'integrator', 'dt', &
       'dt_safety', 'output_interval', 'history_interval', 'energy_warn', 'energy_stop', &
-      'check_interval', 'allow_unstable_dt', 'checkpoint_interval', 'checkpoint_file', 'restart']
+      'check_interval', 'allow_unstable_dt', 'checkpoint_interval', 'checkpoint_file', 'restart', &
+      'repartition_step']
     integer :: k
     name = ''
     associate(grp => text%groups(g))

@@ -68,6 +68,7 @@ module iem_h5_output
     procedure :: write_spring_history => h5_output_write_spring_history
     procedure :: write_cell_field => h5_output_write_cell_field
     procedure :: reopen => h5_output_reopen
+    procedure :: set_owned => h5_output_set_owned
     procedure :: record_continuation => h5_output_record_continuation
     procedure :: samples_written => h5_output_samples_written
     procedure :: frames_written => h5_output_frames_written
@@ -185,6 +186,15 @@ module iem_h5_output
     !> it incomplete, and prepares this rank's node and cell selections as create and
     !> write_mesh do. Collective; the arguments as for create (probe and spring probe names
     !> must match the file).
+    !> After a repartition: this rank now writes the nodes owned_gids and the counted cells
+    !> cell_gids (both ascending) of every later frame. Collective.
+    module subroutine h5_output_set_owned(this, owned_gids, cell_gids, stat, msg)
+      class(h5_output_t), intent(inout) :: this
+      integer(i8), intent(in) :: owned_gids(:), cell_gids(:)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine h5_output_set_owned
+
     module subroutine h5_output_reopen(this, path, comm, n_nodes, n_cells, owned_gids, cell_gids, &
         probe_names, spring_names, n_samples, n_frames, stat, msg)
       class(h5_output_t), intent(inout) :: this

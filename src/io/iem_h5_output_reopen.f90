@@ -10,7 +10,8 @@ submodule (iem_h5_output) iem_h5_output_reopen
     h5gcreate_f, h5gopen_f, h5gclose_f, h5gget_info_f, h5dset_extent_f, h5dget_space_f, &
     h5screate_simple_f, h5sclose_f, h5aopen_f, h5awrite_f, h5aclose_f, H5T_NATIVE_INTEGER
   use iem_h5_layout, only: energy_names
-  use iem_h5_primitives, only: failed, put_attr, select_runs, make_mem_space, gid_runs, one
+  use iem_h5_primitives, only: failed, put_attr, select_runs, make_mem_space, gid_runs, one, &
+    close_space
   implicit none
 
 contains
@@ -248,5 +249,24 @@ contains
     call h5fflush_f(this%file_id, H5F_SCOPE_GLOBAL_F, ierr)
     if (failed(this%path, ierr, 'h5fflush_f', '/', stat, msg)) return
   end procedure h5_output_record_continuation
+
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure h5_output_set_owned
+    integer :: ierr
+    stat = 0
+    msg = ''
+    call close_space(this%path, this%node_fspace, stat, msg)
+    call close_space(this%path, this%node_mspace, stat, msg)
+    if (stat /= 0) return
+    this%n_owned = size(owned_gids, kind=i8)
+    call gid_runs(owned_gids, this%run_start, this%run_len)
+    call gid_runs(cell_gids, this%cell_start, this%cell_len)
+    call h5screate_simple_f(2, [2_HSIZE_T, int(this%n_nodes, HSIZE_T)], this%node_fspace, ierr)
+    if (failed(this%path, ierr, 'h5screate_simple_f', 'node file space', stat, msg)) return
+    call select_runs(this%path, this%node_fspace, 'node file space', 2, this%run_start, &
+      this%run_len, stat, msg)
+    call make_mem_space(this%path, 2, this%n_owned, 'node memory space', this%node_mspace, &
+      stat, msg)
+  end procedure h5_output_set_owned
 
 end submodule iem_h5_output_reopen

@@ -155,6 +155,16 @@ module iem_simulation
       type(simulation_t), intent(inout) :: this
     end subroutine initial_velocity
 
+    !> Recompute the partition at step k (METIS with new node weights) and move every node's
+    !> state and every cell's history to its new rank; rebuild the model, the state arrays,
+    !> the probes' places and the output's selections for the new lattice. Collective.
+    module subroutine repartition_run(this, k, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine repartition_run
+
     !> Create the output file, or reopen that of the interrupted run when continuing one.
     module subroutine open_output(this, stat, msg)
       type(simulation_t), intent(inout) :: this
@@ -377,6 +387,10 @@ contains
       if (k > k_first) then
         call checkpoint_if_due(this, k, t, t_prev, stat, msg)
         if (stat /= 0) return
+        if (k == this%cfg%run%repartition_step) then
+          call repartition_run(this, k, stat, msg)
+          if (stat /= 0) return
+        end if
       end if
       call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, k == 0)
       if (mod(k, check_interval) == 0) then

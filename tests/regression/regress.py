@@ -134,6 +134,39 @@ def cmd_ranks(args: argparse.Namespace) -> None:
                 check(d <= tol, f"{n} ranks: {name} equal to {d:.1e} ({how})")
 
 
+def cmd_repartition(args: argparse.Namespace) -> None:
+    """A run repartitioned at --step (&run repartition_step: METIS with new node weights, the
+    state and the springs' history moved with their nodes and cells) gives bitwise the history
+    and frames of the same run left on its first partition, on each rank count."""
+    work = scratch("repartition_" + Path(args.case).stem + sub_tag(args.sub))
+    for n in args.ranks:
+        runs = {}
+        for tag in ("plain", "moved"):
+            nml = with_output(Path(args.case), work / f"{tag}{n}.nml", f"{tag}{n}.h5")
+            substitute(nml, args.sub)
+            if tag == "moved":
+                text, k = re.subn(r"^&run\b", f"&run\n  repartition_step = {args.step}",
+                                  nml.read_text(), count=1, flags=re.M)
+                if k != 1:
+                    raise SystemExit(f"{nml}: no &run group")
+                nml.write_text(text)
+            p = run_ok(args, n, nml, work, f"{tag} run on {n} ranks")
+            if p is None:
+                return
+            runs[tag] = (h5py.File(work / f"{tag}{n}.h5", "r"), p.stdout + p.stderr)
+        (a, _), (b, log) = runs["plain"], runs["moved"]
+        moved = re.search(r"repartitioned at step (\d+) .*: (\d+) of (\d+) nodes changed rank", log)
+        check(moved is not None and int(moved.group(2)) > 0,
+              f"{n} ranks: repartitioned at step {args.step}, "
+              f"{moved.group(2) if moved else '?'} nodes changed rank")
+        names = []
+        a.visititems(lambda name, obj: names.append(name) if isinstance(obj, h5py.Dataset) else None)
+        names = [x for x in names if x.startswith(("history/", "frames/"))]
+        differ = [x for x in names if x not in b or not np.array_equal(a[x][:], b[x][:], equal_nan=True)]
+        check(not differ, f"{n} ranks: {len(names)} history and frame datasets bitwise equal"
+                          + (f" (first different: {differ[0]})" if differ else ""))
+
+
 def crossings(t: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Times where s crosses zero upwards (linear interpolation)."""
     i = np.where((s[:-1] < 0) & (s[1:] >= 0))[0]
@@ -455,7 +488,7 @@ def main() -> int:
     """Parse arguments and run one regression check."""
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("check", choices=["ranks", "cantilever", "patch", "static", "convergence",
-                                      "three_point", "block"])
+                                      "three_point", "block", "repartition"])
     ap.add_argument("--iem", required=True, help="path of the iem executable")
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="", help="extra mpiexec flags, ';'-separated")
@@ -465,13 +498,15 @@ def main() -> int:
                     help="OLD=>NEW text substitution in the namelist (repeatable)")
     ap.add_argument("--band", type=float, nargs=2, default=[0.93, 0.97],
                     help="allowed range of static deflection / Timoshenko")
+    ap.add_argument("--step", type=int, default=100,
+                    help="repartition check: the step at which the partition is recomputed")
     ap.add_argument("--tolerance", type=float, default=1e-8,
                     help="relaxation tolerance of the convergence check's static runs")
     args = ap.parse_args()
     args.band_name = [f"{b:g}" for b in args.band]
     {"ranks": cmd_ranks, "cantilever": cmd_cantilever, "patch": cmd_patch,
      "static": cmd_static, "convergence": cmd_convergence, "three_point": cmd_three_point,
-     "block": cmd_block}[args.check](args)
+     "block": cmd_block, "repartition": cmd_repartition}[args.check](args)
     if FAILURES:
         print(f"{len(FAILURES)} check(s) failed")
         return 1
