@@ -256,10 +256,9 @@ contains
       end do
     end do
     call index_loaded_nodes(this, lat%n_owned)
-    allocate(this%en_cell(lat%n_cells), this%pw_cell(merge(lat%n_cells, 0, this%beta > 0.0_wp)), &
-             this%pw_node(merge(lat%n_owned, 0, this%alpha > 0.0_wp)), &
+    allocate(this%en_cell(lat%n_cells), this%pw_cell(lat%n_cells), this%pw_node(lat%n_owned), &
              this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), stat=ierr)
-    call g%note(ierr, 'the energy terms of the rank', 8.0_wp*lat%n_cells)
+    call g%note(ierr, 'the energy terms of the rank', 16.0_wp*lat%n_cells + 8.0_wp*lat%n_owned)
     if (g%failed) then
       call g%pass(guard)
       return
@@ -428,14 +427,16 @@ contains
     do n = 1, size(this%pr_bc)
       call this%w_ext_acc%add(wdt*this%pr_bc(n))
     end do
-    if (size(this%pw_cell) > 0) then
+    if (this%beta > 0.0_wp) then
       do c = 1, lat%n_cells
         if (lat%cell_nodes(1, c) <= lat%n_owned) call this%w_damp_acc%add(wdt*this%pw_cell(c))
       end do
     end if
-    do l = 1, size(this%pw_node)
-      call this%w_damp_acc%add(wdt*this%pw_node(l))
-    end do
+    if (this%alpha > 0.0_wp) then
+      do l = 1, lat%n_owned
+        call this%w_damp_acc%add(wdt*this%pw_node(l))
+      end do
+    end if
   end subroutine model_add_work
 
   !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of

@@ -87,8 +87,8 @@ contains
   !> cell_mat (several materials), cell c follows the constants ks(cell_mat(c)) (and its
   !> material's nonlinear law); k then gives only the geometry (lx, ly, il0), the same for all.
   !> With cell_energy and cell_power (one entry a cell; an empty array: not kept), each
-  !> cell's energy and damping power are also stored (for sums that do not depend on how
-  !> the cells are split among ranks).
+  !> cell's energy and (when beta > 0) damping power are also stored (for sums that do not
+  !> depend on how the cells are split among ranks).
   pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
                               nl, commit, ks, cell_mat, cell_energy, cell_power)
     type(cell_constants_t), intent(in) :: k
@@ -112,7 +112,7 @@ contains
     keep_energy = .false.
     keep_power = .false.
     if (present(cell_energy)) keep_energy = size(cell_energy) >= nc
-    if (present(cell_power)) keep_power = size(cell_power) >= nc
+    if (present(cell_power)) keep_power = size(cell_power) >= nc .and. beta > 0.0_wp
     accept = .false.
     if (present(commit)) accept = commit
     damped = beta > 0.0_wp

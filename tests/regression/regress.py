@@ -69,7 +69,7 @@ def substitute(nml: Path, subs: list[str]) -> None:
     """Apply OLD=>NEW text substitutions to a namelist (each must match once)."""
     text = nml.read_text()
     for sub in subs:
-        old, new = sub.split("=>")
+        old, new = sub.replace("\\n", "\n").split("=>")
         if text.count(old) != 1:
             raise SystemExit(f"{nml}: '{old}' must occur once")
         text = text.replace(old, new)
