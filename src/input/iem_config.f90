@@ -38,7 +38,7 @@ module iem_config
     !> Recompute the partition at the top of this step (METIS with the nodes of the left half
     !> of the grid ten times heavier) and move the state with it: the migration that load
     !> balancing will use, exposed to test it (0: never).
-    integer(i8) :: repartition_step = 0
+    integer :: repartition_step = 0
   end type run_config_t
 
   !> The background grid of rectangular cells and what fills it (&geometry): the rectangle

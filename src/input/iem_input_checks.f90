@@ -1,28 +1,22 @@
 !> Checks and messages shared by the readers of the namelist groups: the standard message
-!> for a bad value, unknown variables, unreadable lines, finite and representable reals,
-!> logical values, node sets and time functions.
+!> for a bad value, unreadable lines, variables that do not apply, node sets and time
+!> functions (the checks a group's table drives are in iem_input_table).
 module iem_input_checks
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use iem_kinds, only: wp
   use iem_constants, only: unset_real
-  use iem_strings, only: itoa, rtoa, lower
+  use iem_strings, only: itoa, rtoa
   use iem_config, only: node_set_spec_t, time_function_spec_t
   use iem_namelist_text, only: nml_text_t, line_len
   implicit none
   private
-  public :: bad, check_keys, read_error, group_try, check_reals, check_logicals, check_strings
-  public :: given, check_applies
-  public :: check_set, check_tf, real_max, real_min
-
-  !> Every real input is 0 or of magnitude in [real_min, real_max]: products and quotients of
-  !> a few inputs then stay finite and normal in double precision (docs/input.md).
-  real(wp), parameter :: real_max = 1.0e30_wp, real_min = 1.0e-30_wp
+  public :: bad, read_error, group_try, given, check_applies, check_set, check_tf
 
   abstract interface
     !> Read part of one group's text into throw-away variables; returns the iostat.
-    integer function group_try(part) result(ios)
+    integer function group_try(part, iomsg) result(ios)
       import :: line_len
       character(len=line_len), intent(in) :: part(:)
+      character(len=256), intent(out) :: iomsg
     end function group_try
   end interface
 
@@ -40,36 +34,6 @@ contains
       msg = label//': '//var//' '//why
     end if
   end subroutine bad
-
-  !> Check the variable names of group g against the allowed list.
-  subroutine check_keys(text, g, allowed, label, stat, msg)
-    type(nml_text_t), intent(in) :: text
-    integer, intent(in) :: g
-    character(len=*), intent(in) :: allowed(:), label
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    integer :: k
-    character(len=:), allocatable :: list
-    stat = 0
-    msg = ''
-    associate(grp => text%groups(g))
-      do k = 1, grp%n_keys
-        if (findloc(allowed, trim(grp%keys(k)), 1) == 0) then
-          list = trim(allowed(1))
-          block
-            integer :: j
-            do j = 2, size(allowed)
-              list = list//', '//trim(allowed(j))
-            end do
-          end block
-          stat = 1
-          msg = label//': unknown variable "'//trim(grp%keys(k))//'" on line '// &
-                itoa(grp%key_lines(k))//' (allowed: '//list//')'
-          return
-        end if
-      end do
-    end associate
-  end subroutine check_keys
 
   !> Turn a failed namelist read into a message that names the line and its text.
   subroutine read_error(text, g, label, iomsg, chunk, try, msg)
@@ -96,13 +60,14 @@ contains
     character(len=line_len), intent(in) :: chunk(:)
     procedure(group_try) :: try
     character(len=line_len), allocatable :: part(:)
+    character(len=256) :: iomsg
     integer :: n, ios
     bad = 0
     do n = 1, size(chunk)
       allocate(part(n + 1))
       part(1:n) = chunk(1:n)
       part(n + 1) = '/'
-      ios = try(part)
+      ios = try(part, iomsg)
       deallocate(part)
       if (ios /= 0) then
         bad = n
@@ -111,33 +76,6 @@ contains
     end do
   end function find_bad_line
 
-  !> Refuse a real variable of group g that the input gives as NaN, Inf or a magnitude outside
-  !> [real_min, real_max]; names(k) is the variable that holds values(k).
-  subroutine check_reals(text, g, label, names, values, stat, msg)
-    type(nml_text_t), intent(in) :: text
-    integer, intent(in) :: g
-    character(len=*), intent(in) :: label, names(:)
-    real(wp), intent(in) :: values(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    integer :: k
-    real(wp) :: v
-    stat = 0
-    msg = ''
-    do k = 1, size(names)
-      if (findloc(text%groups(g)%keys(1:text%groups(g)%n_keys), trim(names(k)), 1) == 0) cycle
-      v = values(k)
-      if (.not. ieee_is_finite(v)) then
-        call bad(label, trim(names(k)), rtoa(v), 'must be a finite number', stat, msg)
-        return
-      else if (v /= 0.0_wp .and. (abs(v) > real_max .or. abs(v) < real_min)) then
-        call bad(label, trim(names(k)), rtoa(v), 'is out of range: a real input must be 0 '// &
-                 'or of magnitude between 1e-30 and 1e30', stat, msg)
-        return
-      end if
-    end do
-  end subroutine check_reals
-
   !> True when group g assigns the variable name (whole or an element).
   logical function given(text, g, name)
     type(nml_text_t), intent(in) :: text
@@ -145,61 +83,6 @@ contains
     character(len=*), intent(in) :: name
     given = findloc(text%groups(g)%keys(1:text%groups(g)%n_keys), name, 1) > 0
   end function given
-
-  !> Refuse a string variable of group g written without quotes (Fortran would take 1.5e3
-  !> or a misspelt .true. as a string) or longer than the lens(k) characters it is kept in.
-  subroutine check_strings(text, g, label, names, lens, stat, msg)
-    type(nml_text_t), intent(in) :: text
-    integer, intent(in) :: g
-    character(len=*), intent(in) :: label, names(:)
-    integer, intent(in) :: lens(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    character(len=:), allocatable :: raw
-    integer :: k, j, n
-    stat = 0
-    msg = ''
-    associate(grp => text%groups(g))
-      do k = 1, grp%n_keys
-        j = findloc(names, trim(grp%keys(k)), 1)
-        if (j == 0) cycle
-        raw = text%raw_value(g, k)
-        if (len(raw) < 2) then
-          n = -1
-        else if (raw(1:1) /= "'" .and. raw(1:1) /= '"') then
-          n = -1
-        else
-          ! characters inside the quotes, a doubled quote counting once
-          n = len(raw) - 2
-          n = n - (count_doubled(raw(2:len(raw) - 1), raw(1:1)))
-        end if
-        if (n < 0) then
-          call bad(label, trim(grp%keys(k)), raw, "must be a quoted string ('...')", stat, msg)
-          return
-        else if (n > lens(j)) then
-          call bad(label, trim(grp%keys(k)), raw, 'is longer than '//itoa(lens(j))// &
-                   ' characters', stat, msg)
-          return
-        end if
-      end do
-    end associate
-  end subroutine check_strings
-
-  pure integer function count_doubled(s, q) result(n)
-    character(len=*), intent(in) :: s
-    character, intent(in) :: q
-    integer :: i
-    n = 0
-    i = 1
-    do while (i < len(s))
-      if (s(i:i) == q .and. s(i+1:i+1) == q) then
-        n = n + 1
-        i = i + 2
-      else
-        i = i + 1
-      end if
-    end do
-  end function count_doubled
 
   !> Refuse a node-set or time-function variable of group g that the chosen where or
   !> time_function does not use (it would be silently ignored).
@@ -229,32 +112,6 @@ contains
                trim(time_function)//"')", stat, msg)
     end if
   end subroutine check_applies
-
-  !> Refuse a logical variable of group g written as anything but .true./.false. (or T/F):
-  !> Fortran would read any word starting with t or f, and '.tomato' as true.
-  subroutine check_logicals(text, g, label, names, stat, msg)
-    type(nml_text_t), intent(in) :: text
-    integer, intent(in) :: g
-    character(len=*), intent(in) :: label, names(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    character(len=*), parameter :: allowed(*) = [character(len=7) :: '.true.', '.false.', &
-      'true', 'false', 't', 'f', '.t.', '.f.', '.t', '.f']
-    character(len=:), allocatable :: token
-    integer :: k
-    stat = 0
-    msg = ''
-    associate(grp => text%groups(g))
-      do k = 1, grp%n_keys
-        if (findloc(names, trim(grp%keys(k)), 1) == 0) cycle
-        token = lower(text%value(g, k))
-        if (findloc(allowed, token, 1) == 0) then
-          call bad(label, trim(grp%keys(k)), token, 'must be .true. or .false.', stat, msg)
-          return
-        end if
-      end do
-    end associate
-  end subroutine check_logicals
 
   !> Validate a node-set description (docs/input.md, "Node sets"); edge: the set of an edge
   !> load (a traction on the boundary edges between its nodes), which refuses 'point' and

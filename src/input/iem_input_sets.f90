@@ -5,8 +5,8 @@ module iem_input_sets
   use iem_strings, only: itoa, rtoa, lower
   use iem_config, only: bc_config_t, load_config_t, probe_config_t, node_set_spec_t, name_len
   use iem_namelist_text, only: nml_text_t, line_len
-  use iem_input_checks, only: bad, check_keys, read_error, check_reals, check_logicals, &
-                              check_strings, check_set, check_tf, check_applies
+  use iem_input_checks, only: bad, check_set, check_tf, check_applies
+  use iem_input_table, only: key_t, key, key_only, read_group, check_literals, check_values
   implicit none
   private
   public :: read_bc, read_load, read_probe
@@ -18,13 +18,12 @@ contains
     character(len=line_len), intent(in) :: chunk(:)
     type(bc_config_t), intent(inout) :: b
     integer, intent(out) :: ios
-    character(len=:), allocatable, intent(out) :: iomsg
+    character(len=256), intent(out) :: iomsg
     character(len=name_len) :: name
     character(len=8) :: where, kind, dofs, time_function
     real(wp) :: box(4), point(2), velocity(2), t_start, t_ramp, t_release
     real(wp) :: segment(4), center(2), radius, normal(2)
     character(len=name_len) :: shape
-    character(len=256) :: m
     namelist /bc/ name, where, box, point, segment, center, radius, shape, normal, kind, dofs, &
       velocity, time_function, t_start, t_ramp, t_release
     name = ''; where = ''; box = unset_real; point = unset_real; kind = 'fix'; dofs = 'xy'
@@ -32,9 +31,8 @@ contains
     normal = unset_real
     velocity = 0.0_wp; time_function = 'constant'; t_start = 0.0_wp; t_ramp = 0.0_wp
     t_release = huge(1.0_wp)
-    m = ''
-    read(chunk, nml=bc, iostat=ios, iomsg=m)
-    iomsg = trim(m)
+    iomsg = ''
+    read(chunk, nml=bc, iostat=ios, iomsg=iomsg)
     b%name = name; b%set%where = lower(where); b%set%box = box; b%set%point = point
     call put_set(b%set, segment, center, radius, shape, normal)
     b%kind = lower(kind); b%velocity = velocity
@@ -49,55 +47,45 @@ contains
   subroutine read_bc(text, g, ib, b, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g, ib
-    type(bc_config_t), intent(inout) :: b
+    type(bc_config_t), intent(inout), target :: b
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     character(len=line_len), allocatable :: chunk(:)
-    character(len=:), allocatable :: iomsg, label
+    character(len=256) :: iomsg
+    character(len=:), allocatable :: label
+    type(key_t) :: keys(16)
     label = '&bc #'//itoa(ib)//' (line '//itoa(text%groups(g)%first_line)//')'
-    call check_keys(text, g, [character(len=14) :: 'name', 'where', 'box', 'point', &
-      'segment', 'center', 'radius', 'shape', 'normal', 'kind', 'dofs', 'velocity', &
-      'time_function', 't_start', 't_ramp', 't_release'], label, stat, msg)
+    keys = [key('name', b%name), set_keys(b%set), key('kind', b%kind, allowed='fix velocity'), &
+      key_only('dofs', 's', 8), key('velocity', b%velocity), &
+      key('time_function', b%tf%kind), key('t_start', b%tf%t_start), &
+      key('t_ramp', b%tf%t_ramp), &
+      key('t_release', b%t_release, range='> 0', unit=' [s] (omit it: never released)')]
+    call read_group(text, g, keys, label, try_bc, chunk, stat, msg)
     if (stat /= 0) return
-    call text%chunk(g, chunk)
     call parse_bc(chunk, b, stat, iomsg)
-    if (stat /= 0) then
-      call read_error(text, g, label, iomsg, chunk, try_bc, msg)
-      stat = 1
-      return
-    end if
-    call check_strings(text, g, label, [character(len=13) :: 'name', 'where', 'kind', 'dofs', &
-      'time_function', 'shape'], [name_len, 8, 8, 8, 8, name_len], stat, msg)
-    if (stat == 0) call check_applies(text, g, label, b%set%where, b%tf%kind, stat, msg)
-    if (stat /= 0) return
-    call check_set_reals(text, g, label, b%set, stat, msg)
-    if (stat /= 0) return
-    call check_reals(text, g, label, [character(len=9) :: 'velocity', 'velocity', 't_start', &
-      't_ramp', 't_release'], [b%velocity, b%tf%t_start, b%tf%t_ramp, b%t_release], stat, msg)
+    call check_applies(text, g, label, b%set%where, b%tf%kind, stat, msg)
+    if (stat == 0) call check_literals(text, g, keys, label, stat, msg)
     if (stat /= 0) return
     if (len_trim(b%name) == 0) b%name = 'bc'//itoa(ib)
     call check_set(b%set, label, .false., stat, msg)
+    if (stat == 0) call check_values(keys, 'kind', label, stat, msg)
     if (stat /= 0) return
-    if (b%kind /= 'fix' .and. b%kind /= 'velocity') then
-      call bad(label, 'kind', "'"//trim(b%kind)//"'", "must be 'fix' or 'velocity'", stat, msg)
-    else if (.not. any(b%dof)) then
+    if (.not. any(b%dof)) then
       call bad(label, 'dofs', '', "must be 'x', 'y' or 'xy'", stat, msg)
     else if (b%kind == 'fix' .and. any(b%velocity /= 0.0_wp)) then
       call bad(label, 'velocity', rtoa(b%velocity(1))//', '//rtoa(b%velocity(2)), &
                "needs kind = 'velocity'", stat, msg)
-    else if (.not. (b%t_release > 0.0_wp)) then
-      call bad(label, 't_release', rtoa(b%t_release), 'must be > 0 [s] (omit it: never '// &
-               'released)', stat, msg)
     else
-      call check_tf(b%tf, label, stat, msg)
+      call check_values(keys, 't_release', label, stat, msg)
+      if (stat == 0) call check_tf(b%tf, label, stat, msg)
     end if
   end subroutine read_bc
 
-  integer function try_bc(part) result(ios)
+  integer function try_bc(part, iomsg) result(ios)
     character(len=line_len), intent(in) :: part(:)
+    character(len=256), intent(out) :: iomsg
     type(bc_config_t) :: c
-    character(len=:), allocatable :: m
-    call parse_bc(part, c, ios, m)
+    call parse_bc(part, c, ios, iomsg)
   end function try_bc
 
   ! --------------------------------------------------------------------------------- &load
@@ -105,13 +93,12 @@ contains
     character(len=line_len), intent(in) :: chunk(:)
     type(load_config_t), intent(inout) :: l
     integer, intent(out) :: ios
-    character(len=:), allocatable, intent(out) :: iomsg
+    character(len=256), intent(out) :: iomsg
     character(len=name_len) :: name
     character(len=8) :: where, kind, time_function
     real(wp) :: box(4), point(2), force(2), traction(2), accel(2), t_start, t_ramp
     real(wp) :: segment(4), center(2), radius, normal(2)
     character(len=name_len) :: shape
-    character(len=256) :: m
     namelist /load/ name, kind, where, box, point, segment, center, radius, shape, normal, &
       force, traction, accel, time_function, t_start, t_ramp
     name = ''; kind = 'nodal'; where = ''; box = unset_real; point = unset_real
@@ -119,9 +106,8 @@ contains
     normal = unset_real
     force = unset_real; traction = unset_real; accel = unset_real
     time_function = 'constant'; t_start = 0.0_wp; t_ramp = 0.0_wp
-    m = ''
-    read(chunk, nml=load, iostat=ios, iomsg=m)
-    iomsg = trim(m)
+    iomsg = ''
+    read(chunk, nml=load, iostat=ios, iomsg=iomsg)
     l%name = name; l%kind = lower(kind); l%set%where = lower(where); l%set%box = box
     l%set%point = point
     call put_set(l%set, segment, center, radius, shape, normal)
@@ -144,35 +130,23 @@ contains
   subroutine read_load(text, g, il, l, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g, il
-    type(load_config_t), intent(inout) :: l
+    type(load_config_t), intent(inout), target :: l
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     character(len=line_len), allocatable :: chunk(:)
-    character(len=:), allocatable :: iomsg, label
+    character(len=256) :: iomsg
+    character(len=:), allocatable :: label
     character(len=8) :: vname
+    type(key_t) :: keys(16)
     label = '&load #'//itoa(il)//' (line '//itoa(text%groups(g)%first_line)//')'
-    call check_keys(text, g, [character(len=14) :: 'name', 'kind', 'where', 'box', 'point', &
-      'segment', 'center', 'radius', 'shape', 'normal', 'force', 'traction', 'accel', &
-      'time_function', 't_start', 't_ramp'], label, stat, msg)
+    call read_group(text, g, load_keys(), label, try_load, chunk, stat, msg)
     if (stat /= 0) return
-    call text%chunk(g, chunk)
     call parse_load(chunk, l, stat, iomsg)
-    if (stat /= 0) then
-      call read_error(text, g, label, iomsg, chunk, try_load, msg)
-      stat = 1
-      return
-    end if
-    call check_strings(text, g, label, [character(len=13) :: 'name', 'kind', 'where', &
-      'time_function', 'shape'], [name_len, 8, 8, 8, name_len], stat, msg)
-    if (stat == 0) call check_applies(text, g, label, l%set%where, l%tf%kind, stat, msg)
-    if (stat /= 0) return
-    ! the vector of the load's kind (a vector of another kind is refused below)
-    vname = merge('force   ', merge('traction', merge('accel   ', '        ', &
-      l%kind == 'gravity'), l%kind == 'edge'), l%kind == 'nodal')
-    call check_set_reals(text, g, label, l%set, stat, msg)
-    if (stat /= 0) return
-    call check_reals(text, g, label, [character(len=8) :: vname, vname, 't_start', 't_ramp'], &
-      [l%value, l%tf%t_start, l%tf%t_ramp], stat, msg)
+    ! the table once the kind is known: only the vector of the load's kind is checked as a
+    ! real (a vector of another kind is refused below)
+    keys = load_keys()
+    call check_applies(text, g, label, l%set%where, l%tf%kind, stat, msg)
+    if (stat == 0) call check_literals(text, g, keys, label, stat, msg)
     if (stat /= 0) return
     if (len_trim(l%name) == 0) l%name = 'load'//itoa(il)
     select case (trim(l%kind))
@@ -207,13 +181,28 @@ contains
     call check_set(l%set, label, l%kind == 'edge', stat, msg)
     if (stat /= 0) return
     call check_tf(l%tf, label, stat, msg)
+  contains
+    !> The table of &load's variables; the vector of the load's kind is kept in l%value.
+    function load_keys() result(keys)
+      type(key_t) :: keys(16)
+      keys = [key('name', l%name), key('kind', l%kind), set_keys(l%set), &
+        vector('force', 'nodal'), vector('traction', 'edge'), vector('accel', 'gravity'), &
+        key('time_function', l%tf%kind), key('t_start', l%tf%t_start), &
+        key('t_ramp', l%tf%t_ramp)]
+    end function load_keys
+
+    type(key_t) function vector(name, kind)
+      character(len=*), intent(in) :: name, kind
+      vector = key_only(name, 'r')
+      if (l%kind == kind) vector = key(name, l%value)
+    end function vector
   end subroutine read_load
 
-  integer function try_load(part) result(ios)
+  integer function try_load(part, iomsg) result(ios)
     character(len=line_len), intent(in) :: part(:)
+    character(len=256), intent(out) :: iomsg
     type(load_config_t) :: c
-    character(len=:), allocatable :: m
-    call parse_load(part, c, ios, m)
+    call parse_load(part, c, ios, iomsg)
   end function try_load
 
   ! ---------------------------------------------------------------------- node-set helpers
@@ -226,35 +215,28 @@ contains
     set%shape = shape; set%normal = normal
   end subroutine put_set
 
-  !> Refuse a non-finite or out-of-range real of a node set (check_reals on its variables).
-  subroutine check_set_reals(text, g, label, set, stat, msg)
-    type(nml_text_t), intent(in) :: text
-    integer, intent(in) :: g
-    character(len=*), intent(in) :: label
-    type(node_set_spec_t), intent(in) :: set
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    call check_reals(text, g, label, [character(len=7) :: 'box', 'box', 'box', 'box', 'point', &
-      'point', 'segment', 'segment', 'segment', 'segment', 'center', 'center', 'radius', &
-      'normal', 'normal'], [set%box, set%point, set%segment, set%center, set%radius, &
-      set%normal], stat, msg)
-  end subroutine check_set_reals
+  !> The table entries of the node-set variables of a &bc or &load, kept in set.
+  function set_keys(set) result(keys)
+    type(node_set_spec_t), intent(in), target :: set
+    type(key_t) :: keys(8)
+    keys = [key('where', set%where), key('box', set%box), key('point', set%point), &
+      key('segment', set%segment), key('center', set%center), key('radius', set%radius), &
+      key('shape', set%shape), key('normal', set%normal)]
+  end function set_keys
 
   ! -------------------------------------------------------------------------------- &probe
   subroutine parse_probe(chunk, p, ios, iomsg)
     character(len=line_len), intent(in) :: chunk(:)
     type(probe_config_t), intent(inout) :: p
     integer, intent(out) :: ios
-    character(len=:), allocatable, intent(out) :: iomsg
+    character(len=256), intent(out) :: iomsg
     character(len=name_len) :: name
     real(wp) :: x, y
     logical :: springs
-    character(len=256) :: m
     namelist /probe/ name, x, y, springs
     name = ''; x = unset_real; y = unset_real; springs = .false.
-    m = ''
-    read(chunk, nml=probe, iostat=ios, iomsg=m)
-    iomsg = trim(m)
+    iomsg = ''
+    read(chunk, nml=probe, iostat=ios, iomsg=iomsg)
     p%name = name; p%x = x; p%y = y; p%springs = springs
   end subroutine parse_probe
 
@@ -262,26 +244,20 @@ contains
   subroutine read_probe(text, g, ip, p, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g, ip
-    type(probe_config_t), intent(inout) :: p
+    type(probe_config_t), intent(inout), target :: p
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     character(len=line_len), allocatable :: chunk(:)
-    character(len=:), allocatable :: iomsg, label
+    character(len=256) :: iomsg
+    character(len=:), allocatable :: label
+    type(key_t) :: keys(4)
     label = '&probe #'//itoa(ip)//' (line '//itoa(text%groups(g)%first_line)//')'
-    call check_keys(text, g, [character(len=8) :: 'name', 'x', 'y', 'springs'], label, stat, &
-                    msg)
+    keys = [key('name', p%name), key('x', p%x, need=' [m]'), key('y', p%y, need=' [m]'), &
+      key('springs', p%springs)]
+    call read_group(text, g, keys, label, try_probe, chunk, stat, msg)
     if (stat /= 0) return
-    call text%chunk(g, chunk)
     call parse_probe(chunk, p, stat, iomsg)
-    if (stat /= 0) then
-      call read_error(text, g, label, iomsg, chunk, try_probe, msg)
-      stat = 1
-      return
-    end if
-    call check_strings(text, g, label, ['name'], [name_len], stat, msg)
-    if (stat /= 0) return
-    call check_reals(text, g, label, ['x', 'y'], [p%x, p%y], stat, msg)
-    if (stat == 0) call check_logicals(text, g, label, ['springs'], stat, msg)
+    call check_literals(text, g, keys, label, stat, msg)
     if (stat /= 0) return
     if (len_trim(p%name) == 0) then
       call bad(label, 'name', "''", 'is required', stat, msg)
@@ -289,18 +265,16 @@ contains
                     '0123456789_-.') /= 0) then
       call bad(label, 'name', "'"//trim(p%name)//"'", &
                'may hold only letters, digits, _ - and .', stat, msg)
-    else if (p%x == unset_real) then
-      call bad(label, 'x', '(not given)', 'is required [m]', stat, msg)
-    else if (p%y == unset_real) then
-      call bad(label, 'y', '(not given)', 'is required [m]', stat, msg)
+    else
+      call check_values(keys, 'x y', label, stat, msg)
     end if
   end subroutine read_probe
 
-  integer function try_probe(part) result(ios)
+  integer function try_probe(part, iomsg) result(ios)
     character(len=line_len), intent(in) :: part(:)
+    character(len=256), intent(out) :: iomsg
     type(probe_config_t) :: c
-    character(len=:), allocatable :: m
-    call parse_probe(part, c, ios, m)
+    call parse_probe(part, c, ios, iomsg)
   end function try_probe
 
 end module iem_input_sets

@@ -7,7 +7,8 @@ module iem_input_shapes
   use iem_strings, only: itoa, rtoa, lower
   use iem_config, only: shape_config_t, name_len
   use iem_namelist_text, only: nml_text_t, line_len
-  use iem_input_checks, only: bad, check_keys, read_error, check_reals, check_strings, given
+  use iem_input_checks, only: bad, given
+  use iem_input_table, only: key_t, key, key_only, read_group, check_literals, check_values
   implicit none
   private
   public :: read_shape, max_vertices, valid_name
@@ -30,7 +31,7 @@ contains
     character(len=line_len), intent(in) :: chunk(:)
     type(shape_config_t), intent(inout) :: sh
     integer, intent(out) :: ios
-    character(len=:), allocatable, intent(out) :: iomsg
+    character(len=256), intent(out) :: iomsg
     !> The polygon's values as read (unset where not given) and how many were given.
     real(wp), intent(out), optional :: points(n_values)
     integer, intent(out), optional :: n_given
@@ -38,12 +39,10 @@ contains
     character(len=12) :: kind
     real(wp) :: box(4), center(2), radius
     real(wp) :: p(n_values)
-    character(len=256) :: m
     name = ''; kind = ''; box = unset_real; center = unset_real; radius = unset_real
     p = unset_real; material = ''
-    m = ''
+    iomsg = ''
     call read_it(p)
-    iomsg = trim(m)
     sh%name = name; sh%kind = lower(kind); sh%box = box; sh%center = center
     sh%radius = radius; sh%material = material
     if (present(points)) points = p
@@ -53,7 +52,7 @@ contains
     subroutine read_it(points)
       real(wp), intent(inout) :: points(n_values)
       namelist /shape/ name, kind, box, center, radius, points, material
-      read(chunk, nml=shape, iostat=ios, iomsg=m)
+      read(chunk, nml=shape, iostat=ios, iomsg=iomsg)
     end subroutine read_it
   end subroutine parse_shape
 
@@ -61,45 +60,33 @@ contains
   subroutine read_shape(text, g, is, sh, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g, is
-    type(shape_config_t), intent(inout) :: sh
+    type(shape_config_t), intent(inout), target :: sh
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     character(len=line_len), allocatable :: chunk(:)
-    character(len=:), allocatable :: iomsg, label
-    character(len=6) :: pnames(n_values)
+    character(len=256) :: iomsg
+    character(len=:), allocatable :: label
+    type(key_t) :: keys(7)
     real(wp) :: p(n_values)
+    ! the values of points given (the others hold the unset marker)
+    real(wp), allocatable, target :: given_points(:)
     integer :: n_given, n
     label = '&shape #'//itoa(is)//' (line '//itoa(text%groups(g)%first_line)//')'
-    call check_keys(text, g, [character(len=8) :: 'name', 'kind', 'box', 'center', 'radius', &
-      'points', 'material'], label, stat, msg)
+    keys = [key('name', sh%name), &
+      key('kind', sh%kind, need=": 'rectangle', 'circle' or 'polygon'", &
+          allowed='rectangle circle polygon'), &
+      key('box', sh%box), key('center', sh%center), key('radius', sh%radius), &
+      key_only('points', 'r'), &
+      key('material', sh%material, need=": the name of a &material, or 'void' to remove "// &
+          "material")]
+    call read_group(text, g, keys, label, try_shape, chunk, stat, msg)
     if (stat /= 0) return
-    call text%chunk(g, chunk)
     call parse_shape(chunk, sh, stat, iomsg, p, n_given)
-    if (stat /= 0) then
-      call read_error(text, g, label, iomsg, chunk, try_shape, msg)
-      stat = 1
-      return
-    end if
-    call check_strings(text, g, label, [character(len=8) :: 'name', 'kind', 'material'], &
-      [name_len, 12, name_len], stat, msg)
-    if (stat /= 0) return
-    pnames = 'points'
-    ! only the values given (the others hold the unset marker)
-    call check_reals(text, g, label, [character(len=6) :: 'box', 'box', 'box', 'box', &
-      'center', 'center', 'radius', pnames(1:n_given)], [sh%box, sh%center, sh%radius, &
-      pack(p, p /= unset_real)], stat, msg)
-    if (stat /= 0) return
-    if (len_trim(sh%kind) == 0) then
-      call bad(label, 'kind', '(not given)', "is required: 'rectangle', 'circle' or "// &
-               "'polygon'", stat, msg)
-      return
-    end if
-    if (sh%kind /= 'rectangle' .and. sh%kind /= 'circle' .and. sh%kind /= 'polygon') then
-      call bad(label, 'kind', "'"//trim(sh%kind)//"'", "must be 'rectangle', 'circle' or "// &
-               "'polygon'", stat, msg)
-      return
-    end if
-    call check_shape_applies()
+    given_points = pack(p, p /= unset_real)
+    keys(6) = key('points', given_points)
+    call check_literals(text, g, keys, label, stat, msg)
+    if (stat == 0) call check_values(keys, 'kind', label, stat, msg)
+    if (stat == 0) call check_shape_applies()
     if (stat /= 0) return
     select case (trim(sh%kind))
     case ('rectangle')
@@ -140,10 +127,8 @@ contains
       end if
     end select
     if (stat /= 0) return
-    if (len_trim(sh%material) == 0) then
-      call bad(label, 'material', '(not given)', "is required: the name of a &material, or "// &
-               "'void' to remove material", stat, msg)
-    else if (.not. valid_name(sh%name)) then
+    call check_values(keys, 'material', label, stat, msg)
+    if (stat == 0 .and. .not. valid_name(sh%name)) then
       call bad(label, 'name', "'"//trim(sh%name)//"'", 'may hold only letters, digits, _ - '// &
                'and .', stat, msg)
     end if
@@ -151,14 +136,14 @@ contains
   contains
     !> Refuse a geometric variable that the shape's kind does not use.
     subroutine check_shape_applies()
-      character(len=*), parameter :: keys(*) = [character(len=6) :: 'box', 'center', &
+      character(len=*), parameter :: vars(*) = [character(len=6) :: 'box', 'center', &
         'radius', 'points']
       character(len=*), parameter :: kinds(*) = [character(len=9) :: 'rectangle', 'circle', &
         'circle', 'polygon']
       integer :: k
-      do k = 1, size(keys)
-        if (given(text, g, trim(keys(k))) .and. trim(sh%kind) /= trim(kinds(k))) then
-          call bad(label, trim(keys(k)), '', "applies only to kind = '"//trim(kinds(k))// &
+      do k = 1, size(vars)
+        if (given(text, g, trim(vars(k))) .and. trim(sh%kind) /= trim(kinds(k))) then
+          call bad(label, trim(vars(k)), '', "applies only to kind = '"//trim(kinds(k))// &
                    "' (kind = '"//trim(sh%kind)//"')", stat, msg)
           return
         end if
@@ -166,11 +151,11 @@ contains
     end subroutine check_shape_applies
   end subroutine read_shape
 
-  integer function try_shape(part) result(ios)
+  integer function try_shape(part, iomsg) result(ios)
     character(len=line_len), intent(in) :: part(:)
+    character(len=256), intent(out) :: iomsg
     type(shape_config_t) :: c
-    character(len=:), allocatable :: m
-    call parse_shape(part, c, ios, m)
+    call parse_shape(part, c, ios, iomsg)
   end function try_shape
 
   !> Refuse a polygon that is not simple: more than max_vertices vertices, two consecutive

@@ -387,7 +387,7 @@ contains
       if (k > k_first) then
         call checkpoint_if_due(this, k, t, t_prev, stat, msg)
         if (stat /= 0) return
-        if (k == this%cfg%run%repartition_step) then
+        if (k == int(this%cfg%run%repartition_step, i8)) then
           call repartition_run(this, k, stat, msg)
           if (stat /= 0) return
         end if
