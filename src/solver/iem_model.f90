@@ -62,7 +62,8 @@ module iem_model
     !> Strain energy of the counted cells at the last rate evaluation.
     real(wp) :: energy = 0.0_wp
     !> The terms of the last rate evaluation, kept so that global sums are exact and so
-    !> independent of the partition: each local cell's energy and damping power (the latter
+    !> independent of the partition: each local cell's energy (of the last committed or
+    !> recorded evaluation) and damping power (the latter
     !> only with stiffness damping), each owned node's mass-damping power (only with mass
     !> damping), the power of each loaded node's loads and of each prescribed dof's reaction.
     real(wp), allocatable :: en_cell(:), pw_cell(:), pw_node(:), pe_slot(:), pr_bc(:)
@@ -321,7 +322,7 @@ contains
   !> columns up to date) at time t; also the local power of external forces (loads and
   !> support reactions) and of damping, for the energy balance. With nonlinear springs,
   !> commit = .true. accepts y: the springs' history moves to it (default: trial only).
-  subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit)
+  subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit, record)
     class(model_t), intent(inout) :: this
     type(local_lattice_t), intent(in) :: lat
     real(wp), intent(in) :: y(:, :)
@@ -329,31 +330,41 @@ contains
     real(wp), intent(out) :: acc(:, :)
     real(wp), intent(out) :: p_ext, p_damp
     logical, intent(in), optional :: commit
+    !> Keep the cells' energies (en_cell) also without commit (default: only with commit,
+    !> the accepted states whose energies a history sample reports).
+    logical, intent(in), optional :: record
     real(wp) :: f(2), r
-    integer :: l, b, ld, comp, n, s
+    integer :: l, b, ld, comp, n, s, ne
     logical :: changed, accept
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
+    ne = 0
+    if (present(commit)) then
+      if (commit) ne = lat%n_cells
+    end if
+    if (present(record)) then
+      if (record) ne = lat%n_cells
+    end if
     if (this%nonlinear) then
       accept = .false.
       if (present(commit)) accept = commit
       if (this%mixed) then
         call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
                          this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
-                         lat%cell_mat, this%en_cell, this%pw_cell)
+                         lat%cell_mat, this%en_cell(1:ne), this%pw_cell)
       else
         call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
                          this%energy, p_damp, this%n_state - 1, this%nl, accept, &
-                         cell_energy=this%en_cell, cell_power=this%pw_cell)
+                         cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell)
       end if
     else if (this%mixed) then
       call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
                        this%energy, p_damp, this%n_state - 1, ks=this%ks, cell_mat=lat%cell_mat, &
-                       cell_energy=this%en_cell, cell_power=this%pw_cell)
+                       cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell)
     else
       call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                       this%energy, p_damp, this%n_state - 1, cell_energy=this%en_cell, &
+                       this%energy, p_damp, this%n_state - 1, cell_energy=this%en_cell(1:ne), &
                        cell_power=this%pw_cell)
     end if
     ! external loads: rebuilt only when a time function has changed

@@ -98,7 +98,7 @@ contains
     real(wp) :: p_ext, p_damp
     allocate(scratch(size(st%acc, 1), lat%n_owned))
     call halo%exchange(st%y)
-    call model%rate(lat, st%y, t, scratch, p_ext, p_damp)
+    call model%rate(lat, st%y, t, scratch, p_ext, p_damp, record=.true.)
   end subroutine verlet_resume
 
   !> Advance y from t to t + dt, given in st%acc the rates at (u(t), damping velocity of the
