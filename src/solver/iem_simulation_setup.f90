@@ -13,6 +13,8 @@ submodule (iem_simulation) iem_simulation_setup
   use iem_limits, only: grid_limit_message, springs_limit_message, max_springs_per_rank
   use iem_memory, only: memory_case_t, memory_need_t, memory_estimate, memory_check
   use iem_build_info, only: metis_idx
+  use iem_kinds, only: mpi_wp
+  use iem_timers, only: peak_rss_bytes
   implicit none
 
   !> Samples of the history buffer (written when full and at every frame) and its energies.
@@ -27,10 +29,12 @@ contains
     integer(i8), allocatable :: n_selected(:)
     integer :: k, np, nb, n_state, nsp, ci, l, ierr, cij(2)
     integer(i8) :: most(1)
-    real(wp) :: m_corner
+    real(wp) :: m_corner, wall_setup, peak(1)
     character(len=:), allocatable :: label
+    character(len=80) :: line
     type(alloc_guard_t) :: guard
 
+    wall_setup = MPI_Wtime()
     this%cfg = cfg
     this%static = cfg%run%analysis == 'static'
     this%verlet = .not. this%static .and. cfg%run%integrator == 'verlet'
@@ -208,6 +212,13 @@ contains
     allocate(this%h_pu(2, np, history_chunk), this%h_pv(2, np, history_chunk))
     allocate(this%h_load(history_chunk), this%h_res(history_chunk), this%h_iter(history_chunk))
     allocate(this%sample(4 + 4*np + 2*springs_per_cell*nsp))
+    ! the set-up's wall time and the peak memory so far (largest over ranks), for benchmarks
+    peak = real(peak_rss_bytes(), wp)/1048576.0_wp
+    call MPI_Allreduce(MPI_IN_PLACE, peak, 1, mpi_wp(), MPI_MAX, comm)
+    k = nint(100.0_wp*(MPI_Wtime() - wall_setup))
+    write(line, '(a,i0,a,i2.2,a,f0.1,a)') 'set-up: ', k/100, '.', mod(k, 100), ' s, peak ', &
+      peak(1), ' MB per rank (largest)'
+    call log_info(trim(line))
     stat = 0
     msg = ''
   end procedure simulation_setup
