@@ -3,8 +3,8 @@
 fixed nodes per rank, for a rectangle and for the same rectangle with a circular hole.
 
 The rectangle is the benchmark block of benchmarks/throughput.py (clamped 2:1 block, plane
-stress, edge load, RK4, paper's cell) run for two steps, writing the mesh and the frames at
-the first and last step only; the holed one adds a `&shape` circle of `material = 'void'`
+stress, edge load, RK4, paper's cell) run for one time step, writing the mesh and the frames
+of its first and last step only; the holed one adds a `&shape` circle of `material = 'void'`
 (centre of the block, radius a quarter of its height), so that the body is not uniform and
 keeps a cell map of the whole grid. Each size in --per-rank runs on every rank count in
 --ranks with that many nodes per rank (total = nodes per rank x ranks), so a set-up that
@@ -47,11 +47,11 @@ HOLE = """&shape
 
 
 def setup_case(nodes: float, scene: str) -> tuple[str, int]:
-    """The 2:1 block of about `nodes` grid nodes (with a hole for scene 'hole'), run for two
-    steps: its namelist and its grid's node count."""
+    """The 2:1 block of about `nodes` grid nodes (with a hole for scene 'hole'), run for one
+    time step: its namelist and its grid's node count."""
     ny = max(4, int(round((nodes / 2) ** 0.5)))
     nx = 2 * ny
-    # the stable step of a square cell of size 1/ny is about 1.8e-4/ny s (RK4); 0.9 of it
+    # RK4's step for this material is about 4.5e-4/ny s (0.88 of its limit): one step
     t_end = 2 * 1.6e-4 / ny
     text = CASE.format(t_end=t_end, length=2.0, nx=nx, ny=ny, cell="paper", integrator="rk4")
     if scene == "hole":
