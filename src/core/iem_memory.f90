@@ -48,6 +48,9 @@ module iem_memory
     integer :: depth = 8
     !> Bytes of METIS's idx_t.
     integer :: idx_bytes = 4
+    !> A full rectangle on several ranks: partitioned by coordinate bisection, with no array
+    !> over the whole body on any rank (no METIS, no partition array).
+    logical :: geometric = .false.
   end type memory_case_t
 
   !> Estimated peak bytes of one rank, in the set-up (decomposition; METIS on rank 0) and in
@@ -100,12 +103,18 @@ contains
     need%run_per_node = per_node
     need%run = per_node*n
     ! decomposition: the whole body's partition and map on every rank, with the rank's lattice
-    decomp = global_node_bytes*nn + (lattice_node_bytes + &
-             (lattice_cell_bytes + decomp_cell_bytes)*cells_per_node)*n
+    ! (coordinate bisection: the rank's lattice and its node map only)
+    if (mc%geometric .and. mc%n_ranks > 1) then
+      decomp = (lattice_node_bytes + 8.0_wp + (lattice_cell_bytes + decomp_cell_bytes)* &
+                cells_per_node)*n
+    else
+      decomp = global_node_bytes*nn + (lattice_node_bytes + &
+               (lattice_cell_bytes + decomp_cell_bytes)*cells_per_node)*n
+    end if
     need%setup_other = decomp
     need%setup_root = decomp
     need%setup_root_per_node = decomp/max(nn, 1.0_wp)
-    if (mc%n_ranks > 1) then
+    if (mc%n_ranks > 1 .and. .not. mc%geometric) then
       need%setup_root_per_node = 4.0_wp + metis_words_per_node*mc%idx_bytes
       need%setup_root = max(decomp, need%setup_root_per_node*nn)
     end if

@@ -9,6 +9,7 @@ module iem_decomposition
   use iem_body, only: body_t
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
+  use iem_rcb, only: rcb_t
   use iem_metis, only: partition_body, partition_ok, partition_no_memory, &
                        partition_metis_no_memory
   use iem_alloc_guard, only: alloc_guard_t
@@ -33,11 +34,120 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     integer, intent(in), optional :: width
     integer(ip), allocatable :: part(:)
+    type(rcb_t) :: rcb
+    integer :: nranks, rank, w
+    type(alloc_guard_t) :: guard
 
+    call MPI_Comm_size(comm, nranks)
+    call MPI_Comm_rank(comm, rank)
+    ! a full rectangle on several ranks: coordinate bisection, which every rank computes
+    ! alone, so no rank holds an array over the whole body
+    if (body%uniform .and. nranks > 1) then
+      call rcb%init(body%grid%nx + 1, body%grid%ny + 1, nranks)
+      if (rcb%balanced(2)) then
+        stat = 0
+        msg = ''
+        call build_local_rcb(body, rcb, rank, lat, part, guard)
+        call guard%agree(comm, body%grid%label(), stat, msg)
+        if (stat /= 0) return
+        w = 4
+        if (present(width)) w = width
+        call build_halo(part, rank, comm, lat, halo, w)
+        return
+      end if
+    end if
     call partition(body, comm, part, stat, msg)
     if (stat /= 0) return
     call build(body, part, comm, lat, halo, stat, msg, width)
   end subroutine decompose
+
+  !> Build the local lattice of rank me of a full rectangle from its bisection box: owned
+  !> nodes the box's (ascending), the cells touching them (ascending), halo nodes the ring
+  !> around the box sorted by (owner, number); own(n_local) the owner of each local node.
+  !> Only arrays of the rank's size are allocated.
+  subroutine build_local_rcb(body, rcb, me, lat, own, guard)
+    type(body_t), intent(in) :: body
+    type(rcb_t), intent(in) :: rcb
+    integer, intent(in) :: me
+    type(local_lattice_t), intent(inout) :: lat
+    integer(ip), allocatable, intent(out) :: own(:)
+    type(alloc_guard_t), intent(inout) :: guard
+    integer(ip), allocatable :: lmap(:, :)
+    integer(i8), allocatable :: keys(:)
+    integer :: i0, i1, j0, j1, a0, a1, b0, b1, i, j, n_owned, n_halo, n_cells, k, l, q, ierr
+    integer :: ij(2)
+    integer(i8) :: nn
+    integer, parameter :: di(4) = [0, 1, 0, -1], dj(4) = [-1, 0, 1, 0]
+    integer, parameter :: ci(4) = [0, 1, 1, 0], cj(4) = [0, 0, 1, 1]
+
+    call lat%free()
+    nn = body%n_nodes
+    i0 = rcb%box(1, me)
+    i1 = rcb%box(2, me)
+    j0 = rcb%box(3, me)
+    j1 = rcb%box(4, me)
+    ! the box grown by the ring of halo nodes, within the grid; its cells
+    a0 = max(i0 - 1, 0)
+    a1 = min(i1 + 1, body%grid%nx)
+    b0 = max(j0 - 1, 0)
+    b1 = min(j1 + 1, body%grid%ny)
+    n_owned = (i1 - i0 + 1)*(j1 - j0 + 1)
+    n_halo = (a1 - a0 + 1)*(b1 - b0 + 1) - n_owned
+    n_cells = (min(i1, body%grid%nx - 1) - a0 + 1)*(min(j1, body%grid%ny - 1) - b0 + 1)
+    allocate(lmap(a0:a1, b0:b1), keys(n_halo), lat%gid(n_owned + n_halo), &
+             lat%xy(2, n_owned + n_halo), own(n_owned + n_halo), lat%cell_gid(n_cells), &
+             lat%cell_nodes(4, n_cells), lat%cell_mat(n_cells), lat%cell_open(n_cells), &
+             stat=ierr)
+    call guard%note(ierr, 'the lattice of the rank', 44.0_wp*(n_owned + n_halo) + &
+                    29.0_wp*n_cells)
+    if (guard%failed) return
+    l = 0
+    do j = j0, j1
+      do i = i0, i1
+        l = l + 1
+        lmap(i, j) = int(l, ip)
+        lat%gid(l) = body%node_number(i, j)
+        own(l) = int(me, ip)
+      end do
+    end do
+    k = 0
+    do j = b0, b1
+      do i = a0, a1
+        if (i >= i0 .and. i <= i1 .and. j >= j0 .and. j <= j1) cycle
+        k = k + 1
+        keys(k) = int(rcb%owner(i, j), i8)*nn + body%node_number(i, j)
+      end do
+    end do
+    call sort_i8(keys)
+    do k = 1, n_halo
+      l = n_owned + k
+      lat%gid(l) = mod(keys(k), nn)
+      own(l) = int(keys(k)/nn, ip)
+      ij = body%node_ij(lat%gid(l))
+      lmap(ij(1), ij(2)) = int(l, ip)
+    end do
+    lat%n_owned = n_owned
+    lat%n_local = n_owned + n_halo
+    lat%n_cells = n_cells
+    lat%mixed = .false.
+    do l = 1, lat%n_local
+      lat%xy(:, l) = body%node_xy(lat%gid(l))
+    end do
+    k = 0
+    do j = b0, min(j1, body%grid%ny - 1)
+      do i = a0, min(i1, body%grid%nx - 1)
+        k = k + 1
+        lat%cell_gid(k) = body%cell_number(i, j)
+        lat%cell_nodes(:, k) = [(lmap(i + ci(q), j + cj(q)), q = 1, 4)]
+        lat%cell_mat(k) = body%material(i, j)
+        lat%cell_open(k) = 0_int8
+        do q = 1, 4
+          if (body%material(i + di(q), j + dj(q)) == 0) &
+            lat%cell_open(k) = ibset(lat%cell_open(k), q - 1)
+        end do
+      end do
+    end do
+  end subroutine build_local_rcb
 
   !> Part (rank, 0-based) of every node of the body, part(0:n_nodes-1) on every rank: METIS on
   !> rank 0 over the whole body, broadcast. vwgt(0:n_nodes-1) (read on rank 0 only) weighs
@@ -135,7 +245,7 @@ contains
     if (stat /= 0) return
     w = 4
     if (present(width)) w = width
-    call build_halo(part, rank, comm, lat, halo, w)
+    call build_halo(part(lat%gid(1:lat%n_local)), rank, comm, lat, halo, w)
   end subroutine build
 
   !> Build the local lattice of rank `me` from the global part array; a failed allocation is
@@ -244,8 +354,9 @@ contains
 
   !> Build the halo plan: whom we receive from (contiguous halo ranges) and what we send: an
   !> owned node goes to every rank that owns a node of one of its cells.
-  subroutine build_halo(part, me, comm, lat, halo, width)
-    integer(ip), intent(in) :: part(0:)
+  subroutine build_halo(own, me, comm, lat, halo, width)
+    !> The rank that owns each local node.
+    integer(ip), intent(in) :: own(:)
     integer, intent(in) :: me
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(in) :: lat
@@ -261,7 +372,7 @@ contains
     nb = 0
     allocate(ranks(0))
     do l = lat%n_owned + 1, lat%n_local
-      r = part(lat%gid(l))
+      r = own(l)
       if (nb == 0) then
         ranks = [ranks, r]
         nb = 1
@@ -274,7 +385,7 @@ contains
     nb_of = 0
     k = 0
     do l = lat%n_owned + 1, lat%n_local
-      r = part(lat%gid(l))
+      r = own(l)
       if (k == 0) then
         k = 1
         recv_first(1) = int(l, ip)

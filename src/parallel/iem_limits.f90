@@ -42,12 +42,14 @@ contains
   end function metis_graph_entries
 
   !> Why the grid cannot be run on n_ranks ranks by this build, naming label (the &geometry
-  !> input); '' when it can. nonlinear: with nonlinear springs.
-  pure function grid_limit_message(grid, n_ranks, nonlinear, label) result(why)
+  !> input); '' when it can. nonlinear: with nonlinear springs; geometric: a full rectangle,
+  !> partitioned without METIS (coordinate bisection).
+  pure function grid_limit_message(grid, n_ranks, nonlinear, label, geometric) result(why)
     type(grid_t), intent(in) :: grid
     integer, intent(in) :: n_ranks
     logical, intent(in) :: nonlinear
     character(len=*), intent(in) :: label
+    logical, intent(in), optional :: geometric
     character(len=:), allocatable :: why
     integer(i8) :: entries, per_rank
     character(len=8) :: bits
@@ -58,6 +60,9 @@ contains
       return
     end if
     entries = metis_graph_entries(grid)
+    if (present(geometric)) then
+      if (geometric) entries = 0
+    end if
     if (n_ranks > 1 .and. entries > max_metis_entries) then
       write(bits, '(i0)') storage_size(1_metis_idx)
       why = label//' gives '//approx_text(real(grid%n_nodes, wp))//' nodes: the METIS '// &

@@ -67,7 +67,8 @@ contains
     label = trim(cfg%input_file)//': '//this%grid%label()
     if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
       rtoa(cfg%geometry%cell_size)//')'
-    msg = grid_limit_message(this%grid, this%n_ranks, any(cfg%materials(:)%nonlinear), label)
+    msg = grid_limit_message(this%grid, this%n_ranks, any(cfg%materials(:)%nonlinear), label, &
+                             size(cfg%shapes) == 0 .and. len_trim(cfg%geometry%image) == 0)
     stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
     call check_memory(this, n_state, label, stat, msg)
@@ -244,6 +245,7 @@ contains
     mc%nonlinear = any(this%cfg%materials(:)%nonlinear)
     mc%depth = maxval(this%cfg%materials(:)%history_depth)
     mc%idx_bytes = storage_size(1_metis_idx)/8
+    mc%geometric = size(this%cfg%shapes) == 0 .and. len_trim(this%cfg%geometry%image) == 0
     need = memory_estimate(mc)
     call memory_check(this%comm, need, label, stat, msg, info)
     if (stat == 0) call log_info(info)
