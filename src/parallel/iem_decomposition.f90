@@ -52,7 +52,7 @@ contains
         if (stat /= 0) return
         w = 4
         if (present(width)) w = width
-        call build_halo(part, rank, comm, lat, halo, w)
+        call build_halo(part, comm, lat, halo, w)
         return
       end if
     end if
@@ -245,7 +245,7 @@ contains
     if (stat /= 0) return
     w = 4
     if (present(width)) w = width
-    call build_halo(part(lat%gid(1:lat%n_local)), rank, comm, lat, halo, w)
+    call build_halo(part(lat%gid(1:lat%n_local)), comm, lat, halo, w)
   end subroutine build
 
   !> Build the local lattice of rank `me` from the global part array; a failed allocation is
@@ -354,10 +354,9 @@ contains
 
   !> Build the halo plan: whom we receive from (contiguous halo ranges) and what we send: an
   !> owned node goes to every rank that owns a node of one of its cells.
-  subroutine build_halo(own, me, comm, lat, halo, width)
+  subroutine build_halo(own, comm, lat, halo, width)
     !> The rank that owns each local node.
     integer(ip), intent(in) :: own(:)
-    integer, intent(in) :: me
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
