@@ -247,6 +247,14 @@ module iem_h5_output
       character(len=:), allocatable, intent(inout) :: msg
     end subroutine dataset_lists
 
+    !> (Re)build the selection of this rank's nodes that every frame uses, from run_start,
+    !> run_len and n_owned: the file space (2, n_nodes) and the memory space (2, n_owned).
+    module subroutine select_owned_nodes(this, stat, msg)
+      class(h5_output_t), intent(inout) :: this
+      integer, intent(inout) :: stat
+      character(len=:), allocatable, intent(inout) :: msg
+    end subroutine select_owned_nodes
+
     !> Rank 0 rewrites the sidecar with the frames written so far and the /mesh fields the
     !> open file holds; collective, so that every rank learns of a failure (then
     !> stat = h5_output_sidecar_error unless already set).

@@ -192,12 +192,7 @@ contains
       end do
 
       ! The selection of this rank's nodes, built once and used by every frame.
-      call h5screate_simple_f(2, [2_HSIZE_T, int(n_nodes, HSIZE_T)], this%node_fspace, ierr)
-      if (failed(this%path, ierr, 'h5screate_simple_f', 'node file space', stat, msg)) exit work
-      call select_runs(this%path, this%node_fspace, 'node file space', 2, this%run_start, &
-        this%run_len, stat, msg)
-      call make_mem_space(this%path, 2, this%n_owned, 'node memory space', this%node_mspace, &
-        stat, msg)
+      call select_owned_nodes(this, stat, msg)
     end block work
 
     ! Temporaries, closed on success and on failure alike; the first error is kept.

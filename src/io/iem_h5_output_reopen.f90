@@ -139,12 +139,7 @@ contains
         end do
       end do
 
-      call h5screate_simple_f(2, [2_HSIZE_T, int(n_nodes, HSIZE_T)], this%node_fspace, ierr)
-      if (failed(this%path, ierr, 'h5screate_simple_f', 'node file space', stat, msg)) exit work
-      call select_runs(this%path, this%node_fspace, 'node file space', 2, this%run_start, &
-        this%run_len, stat, msg)
-      call make_mem_space(this%path, 2, this%n_owned, 'node memory space', this%node_mspace, &
-        stat, msg)
+      call select_owned_nodes(this, stat, msg)
     end block work
     if (attr >= 0) call h5aclose_f(attr, ierr)
     if (fapl >= 0) call h5pclose_f(fapl, ierr)
@@ -252,21 +247,27 @@ contains
 
   !> Documented at its interface in iem_h5_output.f90.
   module procedure h5_output_set_owned
-    integer :: ierr
     stat = 0
     msg = ''
-    call close_space(this%path, this%node_fspace, stat, msg)
-    call close_space(this%path, this%node_mspace, stat, msg)
-    if (stat /= 0) return
     this%n_owned = size(owned_gids, kind=i8)
     call gid_runs(owned_gids, this%run_start, this%run_len)
     call gid_runs(cell_gids, this%cell_start, this%cell_len)
+    call select_owned_nodes(this, stat, msg)
+  end procedure h5_output_set_owned
+
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure select_owned_nodes
+    integer :: ierr
+    if (stat /= 0) return
+    call close_space(this%path, this%node_fspace, stat, msg)
+    call close_space(this%path, this%node_mspace, stat, msg)
+    if (stat /= 0) return
     call h5screate_simple_f(2, [2_HSIZE_T, int(this%n_nodes, HSIZE_T)], this%node_fspace, ierr)
     if (failed(this%path, ierr, 'h5screate_simple_f', 'node file space', stat, msg)) return
     call select_runs(this%path, this%node_fspace, 'node file space', 2, this%run_start, &
       this%run_len, stat, msg)
     call make_mem_space(this%path, 2, this%n_owned, 'node memory space', this%node_mspace, &
       stat, msg)
-  end procedure h5_output_set_owned
+  end procedure select_owned_nodes
 
 end submodule iem_h5_output_reopen
