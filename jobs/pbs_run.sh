@@ -13,7 +13,7 @@
 
 # ---- edit for your cluster -----------------------------------------------------------------
 # module purge
-# module load gcc/12 openmpi/4.1 hdf5-mpi/1.10 metis/5.1
+# module load gcc/12 openmpi/4.1 hdf5-mpi/1.10
 IEM_EXE=${IEM_EXE:-$HOME/iem/build/iem}
 IEM_RANKS=${IEM_RANKS:-16}
 IEM_WALLTIME_S=${IEM_WALLTIME_S:-3600}   # keep equal to walltime above

@@ -15,7 +15,7 @@
 
 # ---- edit for your cluster: the modules iem was built with ----------------------------------
 # module purge
-# module load gcc/12 openmpi/4.1 hdf5-mpi/1.10 metis/5.1
+# module load gcc/12 openmpi/4.1 hdf5-mpi/1.10
 IEM_EXE=${IEM_EXE:-$HOME/iem/build/iem}
 IEM_JOB_SCRIPT=${IEM_JOB_SCRIPT:-jobs/slurm_run.sh}
 IEM_MAX_RESUBMITS=${IEM_MAX_RESUBMITS:-20}

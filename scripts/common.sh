@@ -7,7 +7,7 @@ IEM_BUILD=${IEM_BUILD:-$IEM_ROOT/build}
 IEM_VENV=${IEM_VENV:-$IEM_ROOT/.venv}
 # m4 and python3 are needed to build pFUnit (.ci/run builds it from ../shared/vendor/pfunit)
 IEM_PACKAGES="gfortran cmake make libopenmpi-dev openmpi-bin libhdf5-openmpi-dev hdf5-tools
-  libmetis-dev python3 python3-venv python3-pip m4"
+  python3 python3-venv python3-pip m4"
 # Open MPI refuses root unless told; harmless otherwise.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 export OMPI_MCA_rmaps_base_oversubscribe=1

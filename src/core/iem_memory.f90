@@ -24,13 +24,10 @@ module iem_memory
   real(wp), parameter, public :: relax_node_bytes = 192.0_wp
   !> Velocity Verlet's copy of the last good state (the NaN guard).
   real(wp), parameter, public :: verlet_snap_bytes = 32.0_wp
-  !> Decomposition, on every rank: the partition and the global-to-local map of the whole
-  !> body (int32 each), and the rank's cell list (int64).
-  real(wp), parameter, public :: global_node_bytes = 8.0_wp, decomp_cell_bytes = 8.0_wp
-  !> METIS on rank 0, in idx_t words per node of the whole body: xadj 1, the partition 1, the
-  !> adjacency 8, and METIS's own work arrays about 35 (measured: 184 B a node in all with a
-  !> 32-bit idx_t, docs/benchmarks.md); plus our int32 partition.
-  real(wp), parameter, public :: metis_words_per_node = 45.0_wp
+  !> Decomposition, on every rank, per node of its share: the rank's cell list (int64 a
+  !> cell), its node map (8), and for a body cut by shapes or an image the strip and window
+  !> maps and the bisection's points (about 32).
+  real(wp), parameter, public :: decomp_cell_bytes = 8.0_wp, decomp_node_bytes = 40.0_wp
   !> Nonlinear springs: 12 a cell, each 48 bytes plus 16 a reversal point of its history.
   integer, parameter :: springs_per_cell = 12
 
@@ -46,18 +43,13 @@ module iem_memory
     logical :: nonlinear = .false.
     !> Reversal points kept per nonlinear spring.
     integer :: depth = 8
-    !> Bytes of METIS's idx_t.
-    integer :: idx_bytes = 4
-    !> A full rectangle on several ranks: partitioned by coordinate bisection, with no array
-    !> over the whole body on any rank (no METIS, no partition array).
-    logical :: geometric = .false.
   end type memory_case_t
 
   !> Estimated peak bytes of one rank, in the set-up (decomposition; METIS on rank 0) and in
   !> the run (lattice, model, state, nonlinear springs, output and checkpoint buffers).
   type :: memory_need_t
     real(wp) :: setup_root = 0.0_wp, setup_other = 0.0_wp, run = 0.0_wp
-    !> Bytes per node of the whole body (rank 0's set-up) or of the rank's share (the run).
+    !> Bytes per node of the rank's share, in the set-up and in the run.
     real(wp) :: setup_root_per_node = 0.0_wp, run_per_node = 0.0_wp
   contains
     procedure :: root => memory_need_root
@@ -102,22 +94,13 @@ contains
     per_node = per_node + max(frame_node_bytes, ckpt)
     need%run_per_node = per_node
     need%run = per_node*n
-    ! decomposition: the whole body's partition and map on every rank, with the rank's lattice
-    ! (coordinate bisection: the rank's lattice and its node map only)
-    if (mc%geometric .and. mc%n_ranks > 1) then
-      decomp = (lattice_node_bytes + 8.0_wp + (lattice_cell_bytes + decomp_cell_bytes)* &
-                cells_per_node)*n
-    else
-      decomp = global_node_bytes*nn + (lattice_node_bytes + &
-               (lattice_cell_bytes + decomp_cell_bytes)*cells_per_node)*n
-    end if
+    ! decomposition (coordinate bisection): the rank's lattice, its maps and, for a cut body,
+    ! its strip and window; no array over the whole body on any rank
+    decomp = (lattice_node_bytes + decomp_node_bytes + (lattice_cell_bytes + &
+              decomp_cell_bytes)*cells_per_node)*n
     need%setup_other = decomp
     need%setup_root = decomp
-    need%setup_root_per_node = decomp/max(nn, 1.0_wp)
-    if (mc%n_ranks > 1 .and. .not. mc%geometric) then
-      need%setup_root_per_node = 4.0_wp + metis_words_per_node*mc%idx_bytes
-      need%setup_root = max(decomp, need%setup_root_per_node*nn)
-    end if
+    need%setup_root_per_node = decomp/max(n, 1.0_wp)
   end function memory_estimate
 
   !> Peak bytes of rank 0.
@@ -137,8 +120,8 @@ contains
     class(memory_need_t), intent(in) :: this
     integer, intent(in) :: n_ranks
     character(len=:), allocatable :: s
-    if (this%setup_root > this%run .and. n_ranks > 1) then
-      s = 'METIS graph of the whole body, '//bytes_text(this%setup_root_per_node)//'/node'
+    if (this%setup_root > this%run .and. n_ranks > 0) then
+      s = 'set-up of the lattice, '//bytes_text(this%setup_root_per_node)//'/node of its share'
     else
       s = 'lattice, state and buffers, '//bytes_text(this%run_per_node)//'/node'
     end if

@@ -109,6 +109,8 @@ module iem_config
     character(len=name_len) :: shape = ''
     integer :: shape_id = 0
     real(wp) :: normal(2) = 0.0_wp
+    !> 'point': the node of the body nearest to point, found at set-up (-1 before).
+    integer(i8) :: node = -1
   end type node_set_spec_t
 
   !> Time function of a load or prescribed velocity: constant, step or linear ramp.

@@ -1,12 +1,14 @@
-!> The image cell map of &geometry checked at read time: rank 0 reads the PBM/PGM file
-!> (iem_image) and checks it against the input; every rank then takes the grid size from it.
+!> The image cell map of &geometry checked at read time: rank 0 reads the header of the
+!> PBM/PGM file (iem_image) and checks it against the input; every rank then takes the grid
+!> size from it. The pixels are read and checked by the ranks' strips when the body is
+!> numbered (iem_body, classify_rows), so no rank reads the whole image.
 module iem_input_image
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Bcast, MPI_INTEGER
   use iem_kinds, only: wp
   use iem_strings, only: itoa, rtoa
   use iem_config, only: config_t
   use iem_paths, only: why_not_readable
-  use iem_image, only: image_t, read_image
+  use iem_image, only: image_t, read_image_rows
   use iem_input_files, only: bcast_message
   implicit none
   private
@@ -14,9 +16,9 @@ module iem_input_image
 
 contains
 
-  !> With &geometry image given: rank 0 reads it and checks it (a readable PBM/PGM file, its
-  !> size against nx, ny or cell_size, image_levels within 0..maxval, every pixel's level
-  !> listed); nx, ny are set to its width and height on every rank. Collective; stat /= 0
+  !> With &geometry image given: rank 0 reads its header and checks it (a readable PBM/PGM
+  !> file, its size against nx, ny or cell_size, image_levels within 0..maxval); nx, ny are
+  !> set to its width and height on every rank. Collective; stat /= 0
   !> and the same msg on every rank when something is wrong.
   subroutine check_image(cfg, comm, stat, msg)
     type(config_t), intent(inout) :: cfg
@@ -49,8 +51,7 @@ contains
     character(len=:), allocatable, intent(inout) :: msg
     character(len=:), allocatable :: path, head, why, prefix
     type(image_t) :: img
-    integer :: stat, k, i, j
-    logical, allocatable :: listed(:)
+    integer :: stat, k
     path = trim(cfg%geometry%image)
     head = "&geometry: image = '"//path//"'"
     dims = 0
@@ -59,7 +60,7 @@ contains
       msg = head//': '//why
       return
     end if
-    call read_image(path, img, stat, why)
+    call read_image_rows(path, 1, 0, img, stat, why)
     if (stat /= 0) then
       ! read_image names the file itself: keep only the reason
       prefix = "image '"//path//"': "
@@ -88,19 +89,6 @@ contains
                 'maxval '//itoa(img%maxval)//' of '//head(12:)
           return
         end if
-      end do
-      allocate(listed(0:img%maxval))
-      listed = .false.
-      listed(o%image_levels) = .true.
-      do j = 1, img%height
-        do i = 1, img%width
-          if (.not. listed(img%pix(i, j))) then
-            msg = '&geometry: image_levels has no entry for grey level '// &
-                  itoa(img%pix(i, j))//', the pixel at row '//itoa(j)//', column '//itoa(i)// &
-                  ' of '//head(12:)//': every level of the image needs a material'
-            return
-          end if
-        end do
       end do
     end associate
     dims = [img%width, img%height]

@@ -22,6 +22,10 @@ module iem_local_lattice
     integer(i8), allocatable :: cell_gid(:)
     integer, allocatable :: cell_mat(:)
     integer(int8), allocatable :: cell_open(:)
+    !> With shapes only: the shape that decided each cell (0: the background or the image), and
+    !> the one that decided the grid cell across each edge (side_src(q, c); -1: outside the
+    !> grid), for the node sets on a shape's outline.
+    integer(int8), allocatable :: cell_src(:), side_src(:, :)
     !> Whether the lattice has more than one material (the kernel then reads cell_mat).
     logical :: mixed = .false.
   contains
@@ -63,6 +67,8 @@ contains
     if (allocated(this%cell_gid)) deallocate(this%cell_gid)
     if (allocated(this%cell_mat)) deallocate(this%cell_mat)
     if (allocated(this%cell_open)) deallocate(this%cell_open)
+    if (allocated(this%cell_src)) deallocate(this%cell_src)
+    if (allocated(this%side_src)) deallocate(this%side_src)
     this%n_owned = 0
     this%n_local = 0
     this%n_cells = 0

@@ -20,7 +20,7 @@ contains
   !> The owned nodes of lat in the set spec (mask(n_owned)); with weight(n_owned), the length
   !> of the set's boundary each carries: half of every open edge of the set that ends at it.
   !> An open edge belongs to a set by position when both its nodes do; to a boundary set when
-  !> it satisfies the set's rule.
+  !> it satisfies the set's rule. A 'point' set selects the node spec%node (see nearest_node).
   subroutine select_nodes(spec, body, lat, mask, weight)
     type(node_set_spec_t), intent(in) :: spec
     type(body_t), intent(in) :: body
@@ -37,8 +37,7 @@ contains
     allocate(in_set(lat%n_local))
     in_set = .false.
     if (.not. edge_set) then
-      target = -1
-      if (spec%where == 'point') target = body%nearest_node(spec%point(1), spec%point(2))
+      target = spec%node
       do l = 1, lat%n_local
         in_set(l) = node_in(spec, body, lat%xy(:, l), lat%gid(l), target)
       end do
@@ -118,8 +117,6 @@ contains
     type(body_t), intent(in) :: body
     type(local_lattice_t), intent(in) :: lat
     integer, intent(in) :: c, q
-    integer, parameter :: di(4) = [0, 1, 0, -1], dj(4) = [-1, 0, 1, 0]
-    integer :: ij(2)
     real(wp) :: n(2)
     select case (trim(spec%where))
     case ('boundary')
@@ -128,9 +125,9 @@ contains
       n = spec%normal/norm2(spec%normal)
       inside = dot_product(n, edge_normal(:, q)) >= 0.999_wp
     case ('shape')
-      ij = body%cell_ij(lat%cell_gid(c))
-      inside = body%source(ij(1), ij(2)) == spec%shape_id .or. &
-               body%source(ij(1) + di(q), ij(2) + dj(q)) == spec%shape_id
+      inside = .false.
+      if (allocated(lat%cell_src)) inside = lat%cell_src(c) == spec%shape_id .or. &
+                                            lat%side_src(q, c) == spec%shape_id
     case default
       inside = .false.
     end select

@@ -1,31 +1,36 @@
-!> Domain decomposition: METIS partition of the body's nodes (on rank 0, broadcast; partition),
-!> then each rank's local lattice (owned + halo nodes, cells touching owned nodes, from the body's
-!> cell-to-node table) and its halo plan (from the cells that join owned and halo nodes; build).
+!> Domain decomposition: each rank's share of the body by coordinate bisection, computed by
+!> every rank alone for a full rectangle, and weighted by the nodes that exist (iem_rcb,
+!> rcb_init_weighted over the strips of iem_body_numbering) for any other body or for given
+!> node weights; then each rank's local lattice (owned + halo nodes, the cells touching owned
+!> nodes) built from its box alone, and its halo plan. No rank holds an array over the body.
 module iem_decomposition
-  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Bcast, MPI_INTEGER
-  use iem_kinds, only: wp, ip, i8, mpi_ip
-  use iem_build_info, only: metis_idx
+  use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_IN_PLACE, &
+                     MPI_SUM, MPI_INTEGER8
+  use iem_kinds, only: wp, ip, i8
   use, intrinsic :: iso_fortran_env, only: int8
   use iem_body, only: body_t
+  use iem_body_numbering, only: body_strip_t, classify_strip, strip_points, left_counts, &
+                                agree_first, node_weight
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_rcb, only: rcb_t
-  use iem_metis, only: partition_body, partition_ok, partition_no_memory, &
-                       partition_metis_no_memory
   use iem_alloc_guard, only: alloc_guard_t
-  use iem_memory, only: bytes_text
   use iem_sort, only: sort_i8
   use iem_strings, only: itoa
   implicit none
   private
-  public :: decompose, partition, build
+  public :: decompose
 
 contains
 
   !> Partition the body over the ranks of comm and build this rank's lattice and halo plan.
-  !> The halo carries width values a node (default 4: u and v). Collective; stat /= 0 with msg
-  !> on every rank when it fails (a failed allocation included).
-  subroutine decompose(body, comm, lat, halo, stat, msg, width)
+  !> The halo carries width values a node (default 4: u and v). A full rectangle without
+  !> weights is bisected by node counts alone; any other body, or given node weights
+  !> (weight(x, y) >= 1), by the weighted bisection of its existing nodes, from the strips of
+  !> a numbered body (strip, from number_body; classified again when absent). rcb returns the
+  !> bisection (the owner of any node). Collective; stat /= 0 with msg on every rank when it
+  !> fails (a failed allocation included).
+  subroutine decompose(body, comm, lat, halo, stat, msg, width, weight, strip, rcb)
     type(body_t), intent(in) :: body
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(inout) :: lat
@@ -33,33 +38,242 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer, intent(in), optional :: width
-    integer(ip), allocatable :: part(:)
-    type(rcb_t) :: rcb
-    integer :: nranks, rank, w
+    procedure(node_weight), optional :: weight
+    type(body_strip_t), intent(inout), optional :: strip
+    type(rcb_t), intent(out), optional :: rcb
+    integer(ip), allocatable :: own(:)
+    integer(i8), allocatable :: hits(:), cells(:), wts(:), lc(:), ln(:), nodes(:)
+    integer, allocatable :: ij(:, :)
+    type(body_strip_t) :: st
+    type(rcb_t) :: bis
+    integer :: nranks, rank, w, k
     type(alloc_guard_t) :: guard
 
     call MPI_Comm_size(comm, nranks)
     call MPI_Comm_rank(comm, rank)
-    ! a full rectangle on several ranks: coordinate bisection, which every rank computes
-    ! alone, so no rank holds an array over the whole body
-    if (body%uniform .and. nranks > 1) then
-      call rcb%init(body%grid%nx + 1, body%grid%ny + 1, nranks)
-      if (rcb%balanced(2)) then
-        stat = 0
-        msg = ''
-        call build_local_rcb(body, rcb, rank, lat, part, guard)
+    w = 4
+    if (present(width)) w = width
+    stat = 0
+    msg = ''
+    if (body%uniform .and. .not. present(weight)) then
+      call bis%init(body%grid%nx + 1, body%grid%ny + 1, nranks)
+      if (bis%balanced(2)) then
+        call build_local_rcb(body, bis, rank, lat, own, guard)
         call guard%agree(comm, body%grid%label(), stat, msg)
         if (stat /= 0) return
-        w = 4
-        if (present(width)) w = width
-        call build_halo(part, comm, lat, halo, w)
+        call build_halo(own, comm, lat, halo, w)
+        if (present(rcb)) rcb = bis
         return
       end if
     end if
-    call partition(body, comm, part, stat, msg)
+    ! the weighted bisection of the nodes of the strips
+    if (present(strip)) then
+      call move_alloc(strip%mat, st%mat)
+      st%a = strip%a
+      st%b = strip%b
+      st%na = strip%na
+      st%nb = strip%nb
+    else
+      call classify_strip(body, comm, st, hits, cells, stat, msg)
+      if (stat /= 0) return
+    end if
+    call strip_points(body, st, ij, wts, weight)
+    call bis%init_weighted(body%grid%nx + 1, body%grid%ny + 1, nranks, ij, wts, comm)
+    allocate(nodes(0:nranks - 1))
+    nodes = 0
+    do k = 1, size(wts)
+      nodes(bis%owner(ij(1, k), ij(2, k))) = nodes(bis%owner(ij(1, k), ij(2, k))) + 1
+    end do
+    deallocate(ij, wts)
+    call MPI_Allreduce(MPI_IN_PLACE, nodes, nranks, MPI_INTEGER8, MPI_SUM, comm)
+    if (any(nodes < 2)) then
+      stat = 1
+      msg = 'the body has fewer than 2 nodes on a rank ('//itoa(body%n_nodes)//' nodes, '// &
+            itoa(nranks)//' ranks); use fewer ranks or a finer grid'
+      return
+    end if
+    call left_counts(body, st, bis, comm, lc, ln)
+    deallocate(st%mat)
+    call build_local_window(body, bis, rank, lc, ln, lat, own, guard, stat, msg)
+    call agree_first(comm, stat, msg)
     if (stat /= 0) return
-    call build(body, part, comm, lat, halo, stat, msg, width)
+    call guard%agree(comm, body%grid%label(), stat, msg)
+    if (stat /= 0) return
+    call build_halo(own, comm, lat, halo, w)
+    if (present(rcb)) rcb = bis
   end subroutine decompose
+
+  !> Build the local lattice of rank me from its bisection box alone: the window of cells
+  !> around the box is classified here, and numbered from the rows' first numbers
+  !> (body%cell_first, node_first) and the counts left of the window (lc, ln, see
+  !> left_counts). Owned nodes are the box's (ascending), cells those touching them
+  !> (ascending), halo nodes sorted by (owner, number); own(n_local) the owner of each local
+  !> node. stat /= 0 with msg if the image cannot be read; a failed allocation goes to guard.
+  subroutine build_local_window(body, rcb, me, lc, ln, lat, own, guard, stat, msg)
+    type(body_t), intent(in) :: body
+    type(rcb_t), intent(in) :: rcb
+    integer, intent(in) :: me
+    integer(i8), intent(in) :: lc(0:), ln(0:)
+    type(local_lattice_t), intent(inout) :: lat
+    integer(ip), allocatable, intent(out) :: own(:)
+    type(alloc_guard_t), intent(inout) :: guard
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    integer(int8), allocatable :: mat(:, :), src(:, :)
+    integer(i8), allocatable :: nid(:, :), keys(:), hits(:), cells(:)
+    integer(ip), allocatable :: lmap(:, :)
+    integer(i8) :: g, c, nn
+    integer :: i0, i1, j0, j1, a0, a1, b0, b1, r0, i, j, q, k, l, n_owned, n_halo, n_cells
+    integer :: ierr, nx, ny
+    logical :: shapes
+    integer, parameter :: di(4) = [0, 1, 0, -1], dj(4) = [-1, 0, 1, 0]
+    integer, parameter :: ci(4) = [0, 1, 1, 0], cj(4) = [0, 0, 1, 1]
+
+    call lat%free()
+    nx = body%grid%nx
+    ny = body%grid%ny
+    nn = body%n_nodes
+    i0 = rcb%box(1, me)
+    i1 = rcb%box(2, me)
+    j0 = rcb%box(3, me)
+    j1 = rcb%box(4, me)
+    ! nodes of the window: the box and the ring around it, within the grid; rows r0.. of lc
+    a0 = max(i0 - 1, 0)
+    a1 = min(i1 + 1, nx)
+    b0 = max(j0 - 1, 0)
+    b1 = min(j1 + 1, ny)
+    r0 = b0
+    allocate(mat(i0 - 2:i1 + 1, j0 - 2:j1 + 1), src(i0 - 2:i1 + 1, j0 - 2:j1 + 1), &
+             nid(a0:a1, b0:b1), lmap(a0:a1, b0:b1), hits(size(body%shapes)), &
+             cells(body%n_materials), stat=ierr)
+    call guard%note(ierr, 'the window of the rank', 34.0_wp*(a1 - a0 + 3)*(b1 - b0 + 3))
+    stat = 0
+    msg = ''
+    if (guard%failed) return
+    call body%classify_rows(i0 - 2, i1 + 1, j0 - 2, j1 + 1, 1, 0, mat, src, hits, cells, &
+                            stat, msg)
+    if (stat /= 0) return
+    ! numbers of the window's nodes: the row's first, those left of the window, then along
+    do j = b0, b1
+      g = body%node_first(j) + ln(j - r0)
+      do i = a0, a1
+        if (any(mat(i - 1:i, j - 1:j) > 0)) then
+          nid(i, j) = g
+          g = g + 1
+        else
+          nid(i, j) = -1
+        end if
+      end do
+    end do
+    ! owned nodes (the box's), local cells (touching them), halo nodes (their other corners)
+    n_owned = count(nid(i0:i1, j0:j1) >= 0)
+    n_cells = count(mat(a0:min(i1, nx - 1), b0:min(j1, ny - 1)) > 0)
+    lmap = 0
+    l = 0
+    do j = j0, j1
+      do i = i0, i1
+        if (nid(i, j) < 0) cycle
+        l = l + 1
+        lmap(i, j) = int(l, ip)
+      end do
+    end do
+    n_halo = 0
+    do j = b0, min(j1, ny - 1)
+      do i = a0, min(i1, nx - 1)
+        if (mat(i, j) <= 0) cycle
+        do q = 1, 4
+          if (lmap(i + ci(q), j + cj(q)) == 0) then
+            lmap(i + ci(q), j + cj(q)) = -1
+            n_halo = n_halo + 1
+          end if
+        end do
+      end do
+    end do
+    shapes = size(body%shapes) > 0
+    allocate(keys(n_halo), lat%gid(n_owned + n_halo), lat%xy(2, n_owned + n_halo), &
+             own(n_owned + n_halo), lat%cell_gid(n_cells), lat%cell_nodes(4, n_cells), &
+             lat%cell_mat(n_cells), lat%cell_open(n_cells), stat=ierr)
+    if (ierr == 0 .and. shapes) allocate(lat%cell_src(n_cells), lat%side_src(4, n_cells), &
+                                         stat=ierr)
+    call guard%note(ierr, 'the lattice of the rank', 44.0_wp*(n_owned + n_halo) + &
+                    34.0_wp*n_cells)
+    if (guard%failed) return
+    l = 0
+    do j = j0, j1
+      do i = i0, i1
+        if (nid(i, j) < 0) cycle
+        l = l + 1
+        lat%gid(l) = nid(i, j)
+        lat%xy(:, l) = [i*body%grid%lx, j*body%grid%ly]
+        own(l) = int(me, ip)
+      end do
+    end do
+    k = 0
+    do j = b0, b1
+      do i = a0, a1
+        if (lmap(i, j) /= -1) cycle
+        k = k + 1
+        keys(k) = int(rcb%owner(i, j), i8)*nn + nid(i, j)
+      end do
+    end do
+    call sort_i8(keys)
+    do k = 1, n_halo
+      l = n_owned + k
+      g = mod(keys(k), nn)
+      lat%gid(l) = g
+      own(l) = int(keys(k)/nn, ip)
+    end do
+    ! place the ring's halo nodes: each one's slot by binary search of its (owner, number)
+    do j = b0, b1
+      do i = a0, a1
+        if (lmap(i, j) /= -1) cycle
+        k = find_key(keys, int(rcb%owner(i, j), i8)*nn + nid(i, j))
+        lmap(i, j) = int(n_owned + k, ip)
+        lat%xy(:, n_owned + k) = [i*body%grid%lx, j*body%grid%ly]
+      end do
+    end do
+    lat%n_owned = n_owned
+    lat%n_local = n_owned + n_halo
+    lat%n_cells = n_cells
+    lat%mixed = body%n_materials > 1
+    k = 0
+    do j = b0, min(j1, ny - 1)
+      c = body%cell_first(j) + lc(j - r0)
+      do i = a0, min(i1, nx - 1)
+        if (mat(i, j) <= 0) cycle
+        k = k + 1
+        lat%cell_gid(k) = c
+        c = c + 1
+        lat%cell_nodes(:, k) = [(lmap(i + ci(q), j + cj(q)), q = 1, 4)]
+        lat%cell_mat(k) = mat(i, j)
+        lat%cell_open(k) = 0_int8
+        do q = 1, 4
+          if (mat(i + di(q), j + dj(q)) == 0) lat%cell_open(k) = ibset(lat%cell_open(k), q - 1)
+        end do
+        if (shapes) then
+          lat%cell_src(k) = src(i, j)
+          lat%side_src(:, k) = [(src(i + di(q), j + dj(q)), q = 1, 4)]
+        end if
+      end do
+    end do
+  end subroutine build_local_window
+
+  !> Position of key in the ascending list keys (which holds it).
+  pure integer function find_key(keys, key) result(k)
+    integer(i8), intent(in) :: keys(:), key
+    integer :: lo, hi
+    lo = 1
+    hi = size(keys)
+    do while (lo < hi)
+      k = (lo + hi)/2
+      if (keys(k) < key) then
+        lo = k + 1
+      else
+        hi = k
+      end if
+    end do
+    k = lo
+  end function find_key
 
   !> Build the local lattice of rank me of a full rectangle from its bisection box: owned
   !> nodes the box's (ascending), the cells touching them (ascending), halo nodes the ring
@@ -148,209 +362,6 @@ contains
       end do
     end do
   end subroutine build_local_rcb
-
-  !> Part (rank, 0-based) of every node of the body, part(0:n_nodes-1) on every rank: METIS on
-  !> rank 0 over the whole body, broadcast. vwgt(0:n_nodes-1) (read on rank 0 only) weighs
-  !> the nodes (each >= 1, their sum within METIS's integer; default all 1); nparts (default
-  !> the size of comm) is the number of parts. Collective; stat /= 0 with msg on every rank
-  !> when it fails.
-  subroutine partition(body, comm, part, stat, msg, vwgt, nparts)
-    type(body_t), intent(in) :: body
-    type(MPI_Comm), intent(in) :: comm
-    integer(ip), allocatable, intent(out) :: part(:)
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    integer(ip), intent(in), optional :: vwgt(0:)
-    integer, intent(in), optional :: nparts
-    integer :: ierr, rank, nranks
-    integer(i8) :: n
-    type(alloc_guard_t) :: guard
-
-    call MPI_Comm_rank(comm, rank)
-    call MPI_Comm_size(comm, nranks)
-    if (present(nparts)) nranks = nparts
-    stat = 0
-    msg = ''
-    if (body%n_nodes < 2*nranks) then
-      stat = 1
-      msg = 'the body has fewer than 2 nodes per rank; use fewer ranks or a finer grid'
-      return
-    end if
-    n = body%n_nodes
-    if (present(vwgt) .and. rank == 0) then
-      if (size(vwgt, kind=i8) /= n) then
-        stat = 1
-      else if (any(vwgt < 1)) then
-        stat = 1
-      else if (sum(int(vwgt, i8)) > huge(1_metis_idx)) then
-        stat = 1
-      end if
-    end if
-    call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
-    if (stat /= 0) then
-      msg = 'partition: the vertex weights must be one per node of the body, each >= 1, '// &
-            'their sum within METIS''s integer'
-      return
-    end if
-    allocate(part(0:n - 1), stat=ierr)
-    call guard%note(ierr, 'the partition of the whole body', 4.0_wp*n)
-    call guard%agree(comm, body%grid%label(), stat, msg)
-    if (stat /= 0) return
-    if (rank == 0) call partition_body(body, nranks, part, stat, vwgt)
-    call MPI_Bcast(stat, 1, MPI_INTEGER, 0, comm)
-    select case (stat)
-    case (partition_ok)
-    case (partition_no_memory)
-      msg = body%grid%label()//': out of memory on rank 0: allocating the METIS graph of '// &
-            'the whole body (about '//bytes_text(10.0_wp*n*storage_size(1_metis_idx)/8)// &
-            ') failed; use a coarser grid or a node with more memory for rank 0 '// &
-            '(docs/input.md, Limits)'
-    case (partition_metis_no_memory)
-      msg = body%grid%label()//': METIS_PartGraphKway ran out of memory on rank 0; use a '// &
-            'coarser grid or a node with more memory for rank 0 (docs/input.md, Limits)'
-    case default
-      msg = 'METIS_PartGraphKway failed'
-    end select
-    if (stat /= partition_ok) return
-    call MPI_Bcast(part, int(n), mpi_ip(), 0, comm)
-  end subroutine partition
-
-  !> Build this rank's lattice and halo plan (width values a node, default 4) from the part
-  !> array part(0:n_nodes-1), the same on every rank, with values 0 .. size of comm - 1.
-  !> Collective; stat /= 0 with msg on every rank when it fails.
-  subroutine build(body, part, comm, lat, halo, stat, msg, width)
-    type(body_t), intent(in) :: body
-    integer(ip), intent(in) :: part(0:)
-    type(MPI_Comm), intent(in) :: comm
-    type(local_lattice_t), intent(inout) :: lat
-    type(halo_t), intent(inout) :: halo
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    integer, intent(in), optional :: width
-    integer :: w, rank, nranks
-    type(alloc_guard_t) :: guard
-
-    call MPI_Comm_rank(comm, rank)
-    call MPI_Comm_size(comm, nranks)
-    stat = 0
-    msg = ''
-    if (size(part, kind=i8) /= body%n_nodes .or. any(part < 0 .or. part >= nranks)) then
-      stat = 1
-      msg = 'build: the part array must hold one rank (0 .. '//itoa(nranks - 1)// &
-            ') per node of the body'
-      return
-    end if
-    call build_local(body, part, rank, lat, guard)
-    call guard%agree(comm, body%grid%label(), stat, msg)
-    if (stat /= 0) return
-    w = 4
-    if (present(width)) w = width
-    call build_halo(part(lat%gid(1:lat%n_local)), comm, lat, halo, w)
-  end subroutine build
-
-  !> Build the local lattice of rank `me` from the global part array; a failed allocation is
-  !> noted in guard (and the lattice left incomplete).
-  subroutine build_local(body, part, me, lat, guard)
-    type(body_t), intent(in) :: body
-    integer(ip), intent(in) :: part(0:)
-    integer, intent(in) :: me
-    type(local_lattice_t), intent(inout) :: lat
-    type(alloc_guard_t), intent(inout) :: guard
-    integer(ip), allocatable :: g2l(:)
-    integer(i8), allocatable :: keys(:)
-    integer(i8) :: g, c, corners(4), nn
-    integer :: n_owned, n_cells, n_halo, k, q, l, ierr, ij(2)
-    integer, parameter :: di(4) = [0, 1, 0, -1], dj(4) = [-1, 0, 1, 0]
-
-    call lat%free()
-    nn = body%n_nodes
-    allocate(g2l(0:nn - 1), stat=ierr)
-    call guard%note(ierr, 'the global-to-local node map', 4.0_wp*nn)
-    if (guard%failed) return
-    g2l = 0
-    n_owned = count(part == me)
-    ! cells touching an owned node, ascending
-    n_cells = 0
-    do c = 0, body%n_cells - 1
-      corners = body%cell_corners(c)
-      if (any(part(corners) == me)) n_cells = n_cells + 1
-    end do
-    allocate(lat%cell_gid(n_cells), lat%cell_nodes(4, n_cells), lat%cell_mat(n_cells), &
-             lat%cell_open(n_cells), stat=ierr)
-    call guard%note(ierr, 'the cells of the rank', 29.0_wp*n_cells)
-    if (guard%failed) return
-    k = 0
-    do c = 0, body%n_cells - 1
-      corners = body%cell_corners(c)
-      if (any(part(corners) == me)) then
-        k = k + 1
-        lat%cell_gid(k) = c
-      end if
-    end do
-    ! owned nodes ascending, then halo nodes sorted by (owner, global number)
-    l = 0
-    do g = 0, nn - 1
-      if (part(g) == me) then
-        l = l + 1
-        g2l(g) = int(l, ip)
-      end if
-    end do
-    n_halo = 0
-    do k = 1, n_cells
-      corners = body%cell_corners(lat%cell_gid(k))
-      do q = 1, 4
-        if (g2l(corners(q)) == 0) then
-          g2l(corners(q)) = -1
-          n_halo = n_halo + 1
-        end if
-      end do
-    end do
-    allocate(keys(n_halo), lat%gid(n_owned + n_halo), lat%xy(2, n_owned + n_halo), stat=ierr)
-    call guard%note(ierr, 'the nodes of the rank', 24.0_wp*n_owned + 32.0_wp*n_halo)
-    if (guard%failed) return
-    n_halo = 0
-    do k = 1, n_cells
-      corners = body%cell_corners(lat%cell_gid(k))
-      do q = 1, 4
-        g = corners(q)
-        if (g2l(g) == -1) then
-          g2l(g) = -2
-          n_halo = n_halo + 1
-          keys(n_halo) = int(part(g), i8)*nn + g
-        end if
-      end do
-    end do
-    call sort_i8(keys)
-    lat%n_owned = n_owned
-    lat%n_local = n_owned + n_halo
-    lat%n_cells = n_cells
-    l = 0
-    do g = 0, nn - 1
-      if (part(g) == me) then
-        l = l + 1
-        lat%gid(l) = g
-      end if
-    end do
-    do k = 1, n_halo
-      g = mod(keys(k), nn)
-      lat%gid(n_owned + k) = g
-      g2l(g) = int(n_owned + k, ip)
-    end do
-    do l = 1, lat%n_local
-      lat%xy(:, l) = body%node_xy(lat%gid(l))
-    end do
-    lat%mixed = body%n_materials > 1
-    do k = 1, n_cells
-      lat%cell_nodes(:, k) = g2l(body%cell_corners(lat%cell_gid(k)))
-      ij = body%cell_ij(lat%cell_gid(k))
-      lat%cell_mat(k) = body%material(ij(1), ij(2))
-      lat%cell_open(k) = 0_int8
-      do q = 1, 4
-        if (body%material(ij(1) + di(q), ij(2) + dj(q)) == 0) &
-          lat%cell_open(k) = ibset(lat%cell_open(k), q - 1)
-      end do
-    end do
-  end subroutine build_local
 
   !> Build the halo plan: whom we receive from (contiguous halo ranges) and what we send: an
   !> owned node goes to every rank that owns a node of one of its cells.

@@ -1,9 +1,10 @@
-!> Repartitioning during a run: a new part array (METIS on the current graph with new weights,
-!> or given), the lattice and halo plan built from it, and every registered field moved with
-!> its node or cell (migrate). Values travel as bytes, so they arrive bitwise; each rank
-!> places what it receives by global number in the new lattice's order. After a migration the
-!> halo columns of node fields are zero: the caller refreshes those it needs (the state) with
-!> its halo exchange, and rebuilds whatever it derived from the old lattice.
+!> Repartitioning during a run: a new partition (the weighted coordinate bisection of
+!> iem_decomposition with new node weights), the lattice and halo plan built for it, and every
+!> registered field moved with its node or cell (migrate). Values travel as bytes, so they
+!> arrive bitwise; each rank places what it receives by global number in the new lattice's
+!> order. After a migration the halo columns of node fields are zero: the caller refreshes
+!> those it needs (the state) with its halo exchange, and rebuilds whatever it derived from
+!> the old lattice.
 module iem_migration
   use, intrinsic :: iso_fortran_env, only: int8
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Datatype, MPI_Alltoall, &
@@ -11,10 +12,12 @@ module iem_migration
                      MPI_BYTE, MPI_INTEGER, MPI_Allreduce, MPI_IN_PLACE, MPI_MAX
   use iem_kinds, only: wp, ip, i8
   use iem_body, only: body_t
+  use iem_body_numbering, only: node_weight
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
+  use iem_rcb, only: rcb_t
   use iem_fields, only: field_registry_t, centre_node, centre_cell
-  use iem_decomposition, only: partition, build
+  use iem_decomposition, only: decompose
   use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
@@ -25,13 +28,13 @@ module iem_migration
 
 contains
 
-  !> Recompute the partition and move everything to it: the new part array is part when given
-  !> (the same on every rank) and otherwise METIS's, with the node weights vwgt if given (see
-  !> partition); lat and halo are replaced by the new lattice and halo plan (width values a
+  !> Recompute the partition and move everything to it: the weighted bisection of the body's
+  !> nodes with the node weights weight(x, y) (without: the body's own partition, see
+  !> decompose); lat and halo are replaced by the new lattice and halo plan (width values a
   !> node, default the old plan's), every field of reg is migrated (see migrate). Collective.
   !> stat /= 0 with msg on every rank when it fails: lat, halo and reg are then unchanged,
   !> except after a failure inside the migration itself (reg is then undefined).
-  subroutine repartition(body, comm, lat, halo, reg, stat, msg, vwgt, part, width)
+  subroutine repartition(body, comm, lat, halo, reg, stat, msg, weight, width)
     type(body_t), intent(in) :: body
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(inout) :: lat
@@ -39,26 +42,25 @@ contains
     type(field_registry_t), intent(inout) :: reg
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer(ip), intent(in), optional :: vwgt(0:), part(0:)
+    procedure(node_weight), optional :: weight
     integer, intent(in), optional :: width
-    integer(ip), allocatable :: p(:)
+    integer(ip), allocatable :: owner(:)
     type(local_lattice_t) :: lat2
     type(halo_t) :: halo2
-    integer :: w
+    type(rcb_t) :: bis
+    integer :: w, l
 
-    if (present(part)) then
-      allocate(p(0:size(part) - 1))
-      p = part
-      stat = 0
-    else
-      call partition(body, comm, p, stat, msg, vwgt)
-      if (stat /= 0) return
-    end if
     w = halo%width
     if (present(width)) w = width
-    call build(body, p, comm, lat2, halo2, stat, msg, w)
+    call decompose(body, comm, lat2, halo2, stat, msg, w, weight=weight, rcb=bis)
     if (stat /= 0) return
-    call migrate(lat, lat2, p, reg, comm, stat, msg)
+    ! the new owner of every node of the old lattice
+    allocate(owner(lat%n_local))
+    do l = 1, lat%n_local
+      owner(l) = int(bis%owner(nint(lat%xy(1, l)/body%grid%lx), &
+                               nint(lat%xy(2, l)/body%grid%ly)), ip)
+    end do
+    call migrate(lat, lat2, owner, reg, comm, stat, msg)
     if (stat /= 0) return
     call lat%free()
     lat = lat2
@@ -66,16 +68,16 @@ contains
     halo = halo2
   end subroutine repartition
 
-  !> Move every field of reg from the lattice old to the lattice new, built from the part array
-  !> part (the same on every rank): each owned node's record goes to the node's new owner, each
-  !> cell's record from the rank that counted it to every rank that holds the cell under the
-  !> new partition; each arrives at its global number's place in new. reg must span old (its
-  !> node and cell counts) and then spans new; node fields' halo columns are zero. Collective.
-  !> stat /= 0 with msg on every rank when it fails (out of memory, or a lattice that does
-  !> not match part: a record not expected or one missing).
-  subroutine migrate(old, new, part, reg, comm, stat, msg)
+  !> Move every field of reg from the lattice old to the lattice new, where owner(l) is the
+  !> new owner of node l of old (owned and halo): each owned node's record goes to its new
+  !> owner, each cell's record from the rank that counted it to every rank that holds the
+  !> cell in new (the new owners of its corners); each arrives at its global number's place
+  !> in new. reg must span old (its node and cell counts) and then spans new; node fields'
+  !> halo columns are zero. Collective. stat /= 0 with msg on every rank when it fails (out
+  !> of memory, or a lattice that does not match owner: a record not expected or one missing).
+  subroutine migrate(old, new, owner, reg, comm, stat, msg)
     type(local_lattice_t), intent(in) :: old, new
-    integer(ip), intent(in) :: part(0:)
+    integer(ip), intent(in) :: owner(:)
     type(field_registry_t), intent(inout) :: reg
     type(MPI_Comm), intent(in) :: comm
     integer, intent(out) :: stat
@@ -83,24 +85,24 @@ contains
 
     stat = 0
     msg = ''
-    if (reg%n_of(centre_node) /= old%n_local .or. reg%n_of(centre_cell) /= old%n_cells) &
-      stat = 1
+    if (reg%n_of(centre_node) /= old%n_local .or. reg%n_of(centre_cell) /= old%n_cells .or. &
+        size(owner) /= old%n_local) stat = 1
     call MPI_Allreduce(MPI_IN_PLACE, stat, 1, MPI_INTEGER, MPI_MAX, comm)
     if (stat /= 0) then
-      msg = 'migrate: the fields do not span the old lattice (nodes and cells)'
+      msg = 'migrate: the fields and owners do not span the old lattice (nodes and cells)'
       return
     end if
-    call move_centre(old, new, part, reg, comm, centre_node, stat, msg)
+    call move_centre(old, new, owner, reg, comm, centre_node, stat, msg)
     if (stat /= 0) return
-    call move_centre(old, new, part, reg, comm, centre_cell, stat, msg)
+    call move_centre(old, new, owner, reg, comm, centre_cell, stat, msg)
   end subroutine migrate
 
   !> Migrate the fields of one centre: count, exchange counts, pack (global number, record)
   !> grouped by destination, one MPI_Alltoallv in records (a contiguous type of the record's
   !> bytes, so counts stay small), place by global number.
-  subroutine move_centre(old, new, part, reg, comm, centre, stat, msg)
+  subroutine move_centre(old, new, owner, reg, comm, centre, stat, msg)
     type(local_lattice_t), intent(in) :: old, new
-    integer(ip), intent(in) :: part(0:)
+    integer(ip), intent(in) :: owner(:)
     type(field_registry_t), intent(inout) :: reg
     type(MPI_Comm), intent(in) :: comm
     integer, intent(in) :: centre
@@ -131,7 +133,7 @@ contains
     scount = 0
     if (centre == centre_node) then
       do l = 1, old%n_owned
-        r = part(old%gid(l))
+        r = owner(l)
         scount(r) = scount(r) + 1
       end do
     else
@@ -163,7 +165,7 @@ contains
     pos = sdispl
     if (centre == centre_node) then
       do l = 1, old%n_owned
-        r = part(old%gid(l))
+        r = owner(l)
         call put(r, old%gid(l), l)
       end do
     else
@@ -214,7 +216,7 @@ contains
     if (bad /= 0) then
       stat = 1
       msg = 'migrate: the records of the '//what//' do not match the new lattice (a '// &
-            'lattice not built from the part array given?)'
+            'lattice not built for the owners given?)'
     end if
 
   contains
@@ -226,7 +228,7 @@ contains
       integer :: q, rq
       m = 0
       do q = 1, 4
-        rq = part(old%gid(old%cell_nodes(q, cc)))
+        rq = owner(old%cell_nodes(q, cc))
         if (any(d(1:m) == rq)) cycle
         m = m + 1
         d(m) = rq

@@ -6,6 +6,7 @@ submodule (iem_simulation) iem_simulation_guards
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_INTEGER8, MPI_MIN, MPI_2DOUBLE_PRECISION, MPI_MAXLOC
   use iem_logger, only: log_warn
+  use iem_lattice_queries, only: node_place
   implicit none
 
 contains
@@ -85,7 +86,7 @@ contains
     if (first == huge(1_i8)) then
       msg = 'the solution diverged (non-finite energy) at step '//itoa(k)//', t = '//rtoa(t)//' s'
     else
-      xy = this%body%node_xy(first)
+      xy = node_place(this%lat, this%comm, first)
       msg = 'the solution diverged: non-finite values at step '//itoa(k)//', t = '//rtoa(t)// &
             ' s, first at node '//itoa(first)//' (x = '//rtoa(xy(1))//', y = '//rtoa(xy(2))// &
             ' m) on rank '//itoa(owner)
@@ -96,7 +97,7 @@ contains
       if (norm2(good(3:4, l)) > big(1)) big = [norm2(good(3:4, l)), real(this%lat%gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, big, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
-    xy = this%body%node_xy(int(big(2), i8))
+    xy = node_place(this%lat, this%comm, int(big(2), i8))
     msg = msg//', with dt = '//rtoa(this%dt)//' s (stability limit '//rtoa(this%dt_limit)// &
           ' s); in the last good state (step '//itoa(k_good)//', written as the last '// &
           'frame) the fastest node was '//itoa(int(big(2), i8))//' (x = '//rtoa(xy(1))// &
@@ -125,7 +126,7 @@ contains
                                                        real(this%lat%gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, fast, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
-    xy = this%body%node_xy(int(fast(2), i8))
+    xy = node_place(this%lat, this%comm, int(fast(2), i8))
     where = 'fastest node '//itoa(int(fast(2), i8))//' (x = '//rtoa(xy(1))//', y = '// &
             rtoa(xy(2))//' m, speed '//rtoa(fast(1))//' m/s)'
     if (halt) then

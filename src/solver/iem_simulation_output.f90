@@ -9,6 +9,7 @@ submodule (iem_simulation) iem_simulation_output
   use iem_nonlinear_springs, only: springs_per_cell, spring_kind, spring_strains
   use iem_build_info, only: iem_version
   use iem_exact_sum, only: exact_sum_t, exact_sum_allreduce
+  use iem_lattice_queries, only: node_place
   implicit none
 
 contains
@@ -53,7 +54,7 @@ contains
       do k = 1, size(p)
         names(k) = p(k)%name
         pxy(:, k) = [p(k)%x, p(k)%y]
-        nxy(:, k) = this%body%node_xy(this%probe_gid(k))
+        nxy(:, k) = node_place(this%lat, this%comm, this%probe_gid(k))
       end do
     end associate
     call this%out%create(trim(this%cfg%run%output_file), this%comm, this%cfg%run%overwrite, &

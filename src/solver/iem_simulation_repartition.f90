@@ -1,6 +1,6 @@
 !> Repartitioning during a run: the state of every node and the history of every cell are
-!> registered once as fields, METIS recomputes the partition (with new vertex weights), the
-!> fields move with their nodes and cells (iem_migration), and what derives from the lattice
+!> registered once as fields, the weighted bisection recomputes the partition (with new node
+!> weights), the fields move with their nodes and cells (iem_migration), and what derives from the lattice
 !> (the model's supports, loads and masses, the probes' places, the output's selections) is
 !> rebuilt from it. The trajectory and the history are bitwise those of a run that is not
 !> repartitioned (forces are summed per node in cell order, energies are exact sums).
@@ -18,13 +18,10 @@ contains
   !> Documented at its interface in iem_simulation.f90.
   module procedure repartition_run
     type(field_registry_t), target :: reg
-    integer(ip), allocatable :: vwgt(:)
     integer(i8), allocatable :: old_owned(:), n_selected(:)
     type(exact_sum_t) :: w_ext, w_damp
     type(alloc_guard_t) :: guard
     integer :: id_y, id_acc, id_snap, id_en, ids(9), ns, depth, l, k2, moved(1), ierr
-    integer(i8) :: g
-    real(wp) :: xy(2)
     real(wp), pointer :: r2(:, :)
     integer(ip), pointer :: i2(:, :)
     logical :: nl, snap
@@ -70,16 +67,11 @@ contains
     if (nl) call springs_to(reg)
     old_owned = this%lat%gid(1:this%lat%n_owned)
 
-    ! the new partition: METIS with the nodes of the left half of the grid ten times heavier
-    ! than the rest, so that many nodes change rank (the costs that load balancing will
-    ! measure take this place later)
-    allocate(vwgt(0:this%body%n_nodes - 1))
-    do g = 0, this%body%n_nodes - 1
-      xy = this%body%node_xy(g)
-      vwgt(g) = merge(10_ip, 1_ip, xy(1) < 0.5_wp*this%grid%nx*this%grid%lx)
-    end do
-    call repartition(this%body, this%comm, this%lat, this%halo, reg, stat, msg, vwgt=vwgt, &
-                     width=ns)
+    ! the new partition: the bisection with the nodes of the left half of the grid ten times
+    ! heavier than the rest, so that many nodes change rank (the costs that load balancing
+    ! will measure take this place later)
+    call repartition(this%body, this%comm, this%lat, this%halo, reg, stat, msg, &
+                     weight=left_heavy, width=ns)
     if (stat /= 0) then
       msg = 'repartition at step '//itoa(k)//': '//msg
       return
@@ -149,11 +141,17 @@ contains
       end if
     end do
     call MPI_Allreduce(MPI_IN_PLACE, moved, 1, MPI_INTEGER, MPI_SUM, this%comm)
-    call log_info('repartitioned at step '//itoa(k)//' (METIS with new node weights): '// &
+    call log_info('repartitioned at step '//itoa(k)//' (bisection with new node weights): '// &
                   itoa(moved(1))//' of '//itoa(this%body%n_nodes)//' nodes changed rank')
     call reg%free()
 
   contains
+
+    !> Weight of a node in the new partition: 10 in the left half of the grid, else 1.
+    pure integer(i8) function left_heavy(x, y)
+      real(wp), intent(in) :: x, y
+      left_heavy = merge(10_i8, 1_i8, x < 0.5_wp*this%grid%nx*this%grid%lx .and. y > -1.0_wp)
+    end function left_heavy
 
     subroutine add_cell(name, kind, width, id)
       character(len=*), intent(in) :: name

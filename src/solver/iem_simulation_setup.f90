@@ -5,6 +5,9 @@ submodule (iem_simulation) iem_simulation_setup
   use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_SUM, MPI_INTEGER8
   use iem_config, only: damping_config_t
   use iem_decomposition, only: decompose
+  use iem_body_numbering, only: body_strip_t, number_body
+  use iem_lattice_queries, only: nearest_node, cell_holding, resolve_point_sets
+  use iem_pieces, only: count_pieces
   use iem_integrator_factory, only: integrator_create
   use iem_stable_dt, only: cell_omega_max
   use iem_nonlinear_springs, only: springs_per_cell
@@ -12,7 +15,6 @@ submodule (iem_simulation) iem_simulation_setup
   use iem_logger, only: log_warn
   use iem_limits, only: grid_limit_message, springs_limit_message, max_springs_per_rank
   use iem_memory, only: memory_case_t, memory_need_t, memory_estimate, memory_check
-  use iem_build_info, only: metis_idx
   use iem_kinds, only: mpi_wp
   use iem_timers, only: peak_rss_bytes
   implicit none
@@ -27,12 +29,13 @@ contains
   !> Documented at its interface in iem_simulation.f90.
   module procedure simulation_setup
     integer(i8), allocatable :: n_selected(:)
-    integer :: k, np, nb, n_state, nsp, ci, l, ierr, cij(2)
+    integer :: k, np, nb, n_state, nsp, ci, l, ierr
     integer(i8) :: most(1)
     real(wp) :: m_corner, wall_setup, peak(1)
     character(len=:), allocatable :: label
     character(len=80) :: line
     type(alloc_guard_t) :: guard
+    type(body_strip_t) :: strip
 
     wall_setup = MPI_Wtime()
     this%cfg = cfg
@@ -67,22 +70,34 @@ contains
     label = trim(cfg%input_file)//': '//this%grid%label()
     if (cfg%geometry%cell_size > 0.0_wp) label = label//' (from cell_size = '// &
       rtoa(cfg%geometry%cell_size)//')'
-    msg = grid_limit_message(this%grid, this%n_ranks, any(cfg%materials(:)%nonlinear), label, &
-                             size(cfg%shapes) == 0 .and. len_trim(cfg%geometry%image) == 0)
+    msg = grid_limit_message(this%grid, this%n_ranks, any(cfg%materials(:)%nonlinear), label)
     stat = merge(1, 0, len(msg) > 0)
     if (stat /= 0) return
     call check_memory(this, n_state, label, stat, msg)
     if (stat /= 0) return
-    ! the body: every rank builds the same one, so every rank agrees on its errors
+    ! the body: its description on every rank, numbered in strips (every rank agrees on its
+    ! errors), then each rank's share of it
     call this%body%init(cfg, this%grid, stat, msg)
+    if (stat == 0 .and. .not. this%body%uniform) &
+      call number_body(this%body, cfg, comm, strip, stat, msg)
     if (stat /= 0) then
       msg = trim(cfg%input_file)//': '//msg
       return
     end if
+    if (this%body%uniform) then
+      call decompose(this%body, comm, this%lat, this%halo, stat, msg, n_state)
+    else
+      call decompose(this%body, comm, this%lat, this%halo, stat, msg, n_state, strip=strip)
+    end if
+    if (stat /= 0) return
+    if (.not. this%body%uniform) &
+      call count_pieces(this%lat, this%halo, comm, this%body%n_pieces, this%body%piece_xy, &
+                        this%body%n_listed)
     call report_pieces(this, stat, msg)
     if (stat /= 0) return
-    call decompose(this%body, comm, this%lat, this%halo, stat, msg, n_state)
-    if (stat /= 0) return
+    call report_partition(this)
+    ! the nodes of 'point' sets
+    call resolve_point_sets(this%cfg, this%grid, this%lat, comm)
     ! the same limits for the cells and nodes the ranks hold now: the largest over them
     most = 12_i8*this%lat%n_cells
     call MPI_Allreduce(MPI_IN_PLACE, most, 1, MPI_INTEGER8, MPI_MAX, comm)
@@ -170,7 +185,8 @@ contains
     np = size(cfg%probes)
     allocate(this%probe_gid(np), this%probe_local(np))
     do k = 1, np
-      this%probe_gid(k) = this%body%nearest_node(cfg%probes(k)%x, cfg%probes(k)%y)
+      this%probe_gid(k) = nearest_node(this%grid, this%lat, comm, cfg%probes(k)%x, &
+                                       cfg%probes(k)%y)
       this%probe_local(k) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k), 1)
     end do
 
@@ -182,7 +198,8 @@ contains
       if (.not. cfg%probes(k)%springs) cycle
       nsp = nsp + 1
       this%sp_probe(nsp) = k
-      this%sp_cell(nsp) = this%body%cell_at(cfg%probes(k)%x, cfg%probes(k)%y)
+      call cell_holding(this%grid, this%lat, comm, cfg%probes(k)%x, cfg%probes(k)%y, &
+                        this%sp_cell(nsp), ci)
       if (this%sp_cell(nsp) < 0) then
         stat = 1
         msg = trim(cfg%input_file)//': &probe #'//itoa(k)//" ('"//trim(cfg%probes(k)%name)// &
@@ -190,8 +207,6 @@ contains
               rtoa(cfg%probes(k)%y)//': the cell there is not in the body (void)'
         return
       end if
-      cij = this%body%cell_ij(this%sp_cell(nsp))
-      ci = this%body%material(cij(1), cij(2))
       this%moduli(:, nsp) = spring_moduli(cfg%materials(ci)%young, cfg%materials(ci)%poisson, &
                                           cfg%geometry%plane == 'strain')
       this%sp_local(nsp) = 0
@@ -244,12 +259,27 @@ contains
     if (this%static) mc%integrator = 'static'
     mc%nonlinear = any(this%cfg%materials(:)%nonlinear)
     mc%depth = maxval(this%cfg%materials(:)%history_depth)
-    mc%idx_bytes = storage_size(1_metis_idx)/8
-    mc%geometric = size(this%cfg%shapes) == 0 .and. len_trim(this%cfg%geometry%image) == 0
     need = memory_estimate(mc)
     call memory_check(this%comm, need, label, stat, msg, info)
     if (stat == 0) call log_info(info)
   end subroutine check_memory
+
+  !> Log the partition's balance and halo: owned nodes of the largest rank against the mean,
+  !> and the halo nodes of all ranks (what the exchange carries each time). Collective.
+  subroutine report_partition(this)
+    type(simulation_t), intent(in) :: this
+    integer(i8) :: v(3)
+    character(len=120) :: line
+    if (this%n_ranks == 1) return
+    v = [int(this%lat%n_owned, i8), int(this%lat%n_local - this%lat%n_owned, i8), 0_i8]
+    v(3) = v(1)
+    call MPI_Allreduce(MPI_IN_PLACE, v(1:2), 2, MPI_INTEGER8, MPI_SUM, this%comm)
+    call MPI_Allreduce(MPI_IN_PLACE, v(3:3), 1, MPI_INTEGER8, MPI_MAX, this%comm)
+    write(line, '(a,i0,a,f0.3,a,i0,a,f0.4,a)') 'partition: ', this%n_ranks, &
+      ' ranks, largest/mean owned nodes ', real(v(3), wp)*this%n_ranks/real(v(1), wp), &
+      ', halo nodes ', v(2), ' (', real(v(2), wp)/real(v(1), wp), ' of the nodes)'
+    call log_info(trim(line))
+  end subroutine report_partition
 
   !> Log a body in several pieces ('warn': a warning; 'allow': an info line) or refuse it
   !> ('one': stat = 1, msg).
@@ -258,17 +288,15 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     character(len=:), allocatable :: text
-    integer :: k, ij(2)
+    integer :: k
     stat = 0
     msg = ''
     if (this%body%n_pieces <= 1) return
     text = 'the body is in '//itoa(this%body%n_pieces)//' pieces (cells joined through '// &
            'shared nodes); a cell of each but the largest:'
-    do k = 1, size(this%body%piece_cell)
-      if (this%body%piece_cell(k) < 0) exit
-      ij = this%body%cell_ij(this%body%piece_cell(k))
-      text = text//' ('//rtoa((ij(1) + 0.5_wp)*this%grid%lx)//', '// &
-             rtoa((ij(2) + 0.5_wp)*this%grid%ly)//')'
+    do k = 1, this%body%n_listed
+      text = text//' ('//rtoa(this%body%piece_xy(1, k))//', '// &
+             rtoa(this%body%piece_xy(2, k))//')'
     end do
     select case (trim(this%cfg%geometry%pieces))
     case ('one')

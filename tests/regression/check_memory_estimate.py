@@ -2,8 +2,8 @@
 the peak resident memory it reports at the end of the run: from 1e5 to 2e5 nodes the peak
 must grow by the estimate's growth within 30% (the program's fixed ~20-25 MB, which depends on
 the phase that makes the peak, cancels), with a checkpoint written (its buffers are part of
-the estimate): 1 rank with RK4 and with velocity Verlet, and 2 ranks, whose largest peak is
-rank 0's with METIS on the graph of the whole body."""
+the estimate): 1 rank with RK4 and with velocity Verlet, and 2 ranks (the largest peak of
+the ranks, none of which holds an array over the whole body)."""
 
 import argparse
 import os

@@ -135,8 +135,8 @@ def cmd_ranks(args: argparse.Namespace) -> None:
 
 
 def cmd_repartition(args: argparse.Namespace) -> None:
-    """A run repartitioned at --step (&run repartition_step: METIS with new node weights, the
-    state and the springs' history moved with their nodes and cells) gives bitwise the history
+    """A run repartitioned at --step (&run repartition_step: the bisection with new node
+    weights, the state and the springs' history moved with their nodes and cells) gives bitwise the history
     and frames of the same run left on its first partition, on each rank count."""
     work = scratch("repartition_" + Path(args.case).stem + sub_tag(args.sub))
     for n in args.ranks:
