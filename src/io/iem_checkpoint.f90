@@ -36,7 +36,8 @@ module iem_checkpoint
                      MPI_Type_free, MPI_Bcast, &
                      MPI_Barrier, MPI_Allreduce, MPI_MAX, MPI_BXOR, MPI_INTEGER, MPI_INTEGER8, &
                      MPI_DOUBLE_PRECISION, MPI_MODE_CREATE, MPI_MODE_WRONLY, MPI_MODE_RDONLY, &
-                     MPI_INFO_NULL, MPI_OFFSET_KIND, MPI_ADDRESS_KIND, MPI_STATUS_IGNORE, &
+                     MPI_INFO_NULL, MPI_OFFSET_KIND, MPI_BYTE, MPI_ADDRESS_KIND, &
+                     MPI_STATUS_IGNORE, &
                      MPI_IN_PLACE
   use iem_kinds, only: wp, i8
   use iem_strings, only: itoa
@@ -60,6 +61,8 @@ module iem_checkpoint
   integer(i8), parameter :: layout_at = 1024_i8, layout_room = header_bytes - layout_at
   !> Largest record a header may announce (bytes).
   integer(i8), parameter :: max_record = 2_i8**26
+  !> Bytes of the buffer through which records are written and read (at least one record).
+  integer(i8), parameter :: chunk_bytes = 2_i8**24
   !> Word index of the checksum in the file (0-based).
   integer(i8), parameter :: checksum_word = 16
   !> Words a rank reads at once when checking the checksum.
@@ -165,14 +168,14 @@ contains
     end do
   end subroutine pack_records
 
-  !> Set entities 1, 2, ... of a centre of reg from the records words(n, k).
-  subroutine unpack_records(reg, centre, n, words)
+  !> Set the entities ents of a centre of reg from the records words(n, k).
+  subroutine unpack_records(reg, centre, ents, n, words)
     type(field_registry_t), intent(inout) :: reg
-    integer, intent(in) :: centre, n
+    integer, intent(in) :: centre, ents(:), n
     integer(i8), intent(in) :: words(:, :)
     integer :: k
-    do k = 1, size(words, 2)
-      call reg%unpack_one(centre, k, transfer(words(:, k), 0_int8, 8*n))
+    do k = 1, size(ents)
+      call reg%unpack_one(centre, ents(k), transfer(words(:, k), 0_int8, 8*n))
     end do
   end subroutine unpack_records
 
@@ -188,7 +191,8 @@ contains
     type(MPI_Comm), intent(in) :: comm
     type(checkpoint_header_t), intent(in) :: h
     real(wp), intent(in) :: energy(energy_words)
-    type(field_registry_t), intent(in) :: reg
+    ! (not changed: inout only for move_records, which also reads)
+    type(field_registry_t), intent(inout) :: reg
     integer(i8), intent(in) :: node_gids(:), cell_gids(:)
     integer, intent(in) :: cell_ents(:)
     integer, intent(out) :: stat
@@ -198,7 +202,6 @@ contains
     integer :: rank, ierr, ierr2, rec_n, rec_c, k
     integer(MPI_OFFSET_KIND) :: off_n, off_c
     integer(i8) :: sum
-    integer(i8), allocatable :: node_rec(:, :), cell_rec(:, :)
     character(len=:), allocatable :: tmp
 
     call MPI_Comm_rank(comm, rank)
@@ -211,53 +214,48 @@ contains
     call record_sizes(hc, rec_n, rec_c)
     stat = 0
     msg = ''
-    ! the records: the buffers come and go with the checkpoint, out of memory ends it cleanly
-    allocate(node_rec(rec_n, size(node_gids)), cell_rec(rec_c, size(cell_gids)), stat=ierr)
-    call agree(ierr, 'out of memory for the record buffers ('// &
-               itoa(8*(rec_n*size(node_gids, kind=i8) + rec_c*size(cell_gids, kind=i8)))// &
-               ' bytes)')
-    if (stat /= 0) return
-    call pack_records(reg, centre_node, [(k, k = 1, size(node_gids))], rec_n, node_rec)
-    if (rec_c > 0) call pack_records(reg, centre_cell, cell_ents, rec_c, cell_rec)
     off_n = header_bytes + 8_MPI_OFFSET_KIND*energy_words*hc%n_ranks
     off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*hc%n_nodes
-    ! the checksum: every rank hashes the words it writes (rank 0 the header, its checksum
-    ! word as 0, and the layout text and the zeros after it)
-    hc%checksum = 0
-    sum = 0
-    if (rank == 0) then
-      sum = words_hash(0_i8, header_ints(hc))
-      sum = ieor(sum, words_hash(n_header, transfer(header_reals(hc), 0_i8, int(n_header))))
-      sum = ieor(sum, words_hash(layout_at/8, layout_words(hc%layout)))
-    end if
-    sum = ieor(sum, words_hash(header_bytes/8 + int(energy_words, i8)*rank, &
-                               transfer(energy, 0_i8, energy_words)))
-    sum = ieor(sum, records_hash(off_n/8, rec_n, node_gids, node_rec))
-    if (rec_c > 0) sum = ieor(sum, records_hash(off_c/8, rec_c, cell_gids, cell_rec))
-    call MPI_Allreduce(MPI_IN_PLACE, sum, 1, MPI_INTEGER8, MPI_BXOR, comm)
-    hc%checksum = sum
     tmp = path//'.tmp'
     call MPI_File_open(comm, mpiio_name(tmp), ior(MPI_MODE_CREATE, MPI_MODE_WRONLY), &
                        MPI_INFO_NULL, fh, ierr)
     call agree(ierr, 'cannot create '//tmp)
     if (stat /= 0) return
+    ! the checksum: every rank hashes the words it writes (its energy slot and records; rank
+    ! 0 also the header, its checksum word as 0, and the layout text and the zeros after it)
+    call MPI_File_write_at(fh, header_bytes + 8_MPI_OFFSET_KIND*energy_words*rank, energy, &
+                           energy_words, MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
+    sum = words_hash(header_bytes/8 + int(energy_words, i8)*rank, &
+                     transfer(energy, 0_i8, energy_words))
+    call move_records(fh, comm, off_n, rec_n, reg, centre_node, [(k, k = 1, size(node_gids))], &
+                      node_gids, .true., sum, ierr2)
+    ierr = max(ierr, ierr2)
+    if (rec_c > 0) then
+      call move_records(fh, comm, off_c, rec_c, reg, centre_cell, cell_ents, cell_gids, .true., &
+                        sum, ierr2)
+      ierr = max(ierr, ierr2)
+    end if
+    hc%checksum = 0
+    if (rank == 0) then
+      sum = ieor(sum, words_hash(0_i8, header_ints(hc)))
+      sum = ieor(sum, words_hash(n_header, transfer(header_reals(hc), 0_i8, int(n_header))))
+      sum = ieor(sum, words_hash(layout_at/8, layout_words(hc%layout)))
+    end if
+    call MPI_Allreduce(MPI_IN_PLACE, sum, 1, MPI_INTEGER8, MPI_BXOR, comm)
+    hc%checksum = sum
+    ! the header last, in the file's own view (the records' views set their own)
+    call MPI_File_set_view(fh, 0_MPI_OFFSET_KIND, MPI_BYTE, MPI_BYTE, 'native', MPI_INFO_NULL, &
+                           ierr2)
+    ierr = max(ierr, ierr2)
     if (rank == 0) then
       call MPI_File_write_at(fh, 0_MPI_OFFSET_KIND, header_ints(hc), int(n_header), &
-                             MPI_INTEGER8, MPI_STATUS_IGNORE, ierr)
+                             MPI_INTEGER8, MPI_STATUS_IGNORE, ierr2)
+      ierr = max(ierr, ierr2)
       call MPI_File_write_at(fh, int(8*n_header, MPI_OFFSET_KIND), header_reals(hc), &
                              int(n_header), MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr2)
       ierr = max(ierr, ierr2)
       call MPI_File_write_at(fh, int(layout_at, MPI_OFFSET_KIND), layout_words(hc%layout), &
                              int(layout_room/8), MPI_INTEGER8, MPI_STATUS_IGNORE, ierr2)
-      ierr = max(ierr, ierr2)
-    end if
-    call MPI_File_write_at(fh, header_bytes + 8_MPI_OFFSET_KIND*energy_words*rank, energy, &
-                           energy_words, MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr2)
-    ierr = max(ierr, ierr2)
-    call transfer_records(fh, off_n, rec_n, node_gids, node_rec, .true., ierr2)
-    ierr = max(ierr, ierr2)
-    if (rec_c > 0) then
-      call transfer_records(fh, off_c, rec_c, cell_gids, cell_rec, .true., ierr2)
       ierr = max(ierr, ierr2)
     end if
     call MPI_File_close(fh, ierr2)
@@ -456,22 +454,15 @@ contains
     integer :: rank, n_ranks, ierr, ierr2, rec_n, rec_c, worst, r, q
     integer(MPI_OFFSET_KIND) :: off_n, off_c
     real(wp), allocatable :: all_slots(:, :)
-    integer(i8), allocatable :: node_rec(:, :), cell_rec(:, :)
     type(exact_sum_t) :: total(2), one
-    integer(i8) :: packed(exact_sum_packed_size)
+    integer(i8) :: packed(exact_sum_packed_size), unused
+    integer :: k
     call MPI_Comm_rank(comm, rank)
     call MPI_Comm_size(comm, n_ranks)
     call record_sizes(h, rec_n, rec_c)
     stat = 0
     msg = ''
     energy = 0.0_wp
-    allocate(node_rec(rec_n, size(node_gids)), cell_rec(rec_c, size(cell_gids)), stat=ierr)
-    call MPI_Allreduce(ierr, worst, 1, MPI_INTEGER, MPI_MAX, comm)
-    if (worst /= 0) then
-      stat = 1
-      msg = 'out of memory for the record buffers reading '//path
-      return
-    end if
     call MPI_File_open(comm, mpiio_name(path), MPI_MODE_RDONLY, MPI_INFO_NULL, fh, ierr)
     call MPI_Allreduce(ierr, worst, 1, MPI_INTEGER, MPI_MAX, comm)
     if (worst /= 0) then
@@ -502,10 +493,12 @@ contains
     end if
     off_n = header_bytes + 8_MPI_OFFSET_KIND*energy_words*h%n_ranks
     off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
-    call transfer_records(fh, off_n, rec_n, node_gids, node_rec, .false., ierr2)
+    call move_records(fh, comm, off_n, rec_n, reg, centre_node, [(k, k = 1, size(node_gids))], &
+                      node_gids, .false., unused, ierr2)
     ierr = max(ierr, ierr2)
     if (rec_c > 0) then
-      call transfer_records(fh, off_c, rec_c, cell_gids, cell_rec, .false., ierr2)
+      call move_records(fh, comm, off_c, rec_c, reg, centre_cell, [(k, k = 1, size(cell_gids))], &
+                        cell_gids, .false., unused, ierr2)
       ierr = max(ierr, ierr2)
     end if
     call MPI_File_close(fh, ierr2)
@@ -513,11 +506,42 @@ contains
     if (worst /= 0) then
       stat = 1
       msg = 'reading '//path//' failed'
-      return
     end if
-    call unpack_records(reg, centre_node, rec_n, node_rec)
-    if (rec_c > 0) call unpack_records(reg, centre_cell, rec_c, cell_rec)
   end subroutine checkpoint_read
+
+  !> Collective write (or read) of the records of reg's entities ents(k) of a centre at the
+  !> global indices gids(k) (ascending) of the record array at byte offset off, n words a
+  !> record, through a buffer of at most chunk_bytes (in as many rounds on every rank as the
+  !> rank with the most records needs). Writing, sum XORs in the hashes of the words written.
+  subroutine move_records(fh, comm, off, n, reg, centre, ents, gids, write, sum, ierr)
+    type(MPI_File), intent(inout) :: fh
+    type(MPI_Comm), intent(in) :: comm
+    integer(MPI_OFFSET_KIND), intent(in) :: off
+    integer, intent(in) :: n, centre, ents(:)
+    type(field_registry_t), intent(inout) :: reg
+    integer(i8), intent(in) :: gids(:)
+    logical, intent(in) :: write
+    integer(i8), intent(inout) :: sum
+    integer, intent(out) :: ierr
+    integer(i8), allocatable :: buf(:, :)
+    integer :: m, rounds, r, lo, hi, e
+    m = int(max(1_i8, chunk_bytes/(8_i8*n)))
+    rounds = (size(gids) + m - 1)/m
+    call MPI_Allreduce(MPI_IN_PLACE, rounds, 1, MPI_INTEGER, MPI_MAX, comm)
+    allocate(buf(n, min(m, size(gids))), stat=ierr)
+    do r = 1, rounds
+      lo = min((r - 1)*m + 1, size(gids) + 1)
+      hi = min(r*m, size(gids))
+      if (ierr /= 0) hi = lo - 1
+      if (write) then
+        call pack_records(reg, centre, ents(lo:hi), n, buf(:, 1:hi - lo + 1))
+        sum = ieor(sum, records_hash(off/8, n, gids(lo:hi), buf(:, 1:hi - lo + 1)))
+      end if
+      call transfer_records(fh, off, n, gids(lo:hi), buf(:, 1:hi - lo + 1), write, e)
+      ierr = max(ierr, e)
+      if (.not. write) call unpack_records(reg, centre, ents(lo:hi), n, buf(:, 1:hi - lo + 1))
+    end do
+  end subroutine move_records
 
   !> Collective write (or read) of records rec(:, k) of n words at the global indices
   !> gids(k) (ascending) of the record array that starts at byte offset off.

@@ -3,8 +3,9 @@
 !> (analysis = 'static'), recording history, frames and progress. This module holds the run's
 !> type and its driver, which only sequences the parts that live in the submodules: set-up
 !> (_setup), the history recorder and frames (_output), checkpoints and continued runs
-!> (iem_restart), the guards (_guards), the static load steps (_static) and the reports
-!> (_report); the integrators are behind iem_integrator's interface (docs/architecture.md).
+!> (iem_restart), the run's fields for checkpoints and repartitioning (_fields), the guards
+!> (_guards), the static load steps (_static) and the reports (_report); the integrators
+!> are behind iem_integrator's interface (docs/architecture.md).
 module iem_simulation
   use mpi_f08, only: MPI_Comm, MPI_Allreduce, MPI_MAX, MPI_IN_PLACE, MPI_Wtime, MPI_LOGICAL, &
     MPI_LAND, MPI_INTEGER
