@@ -1,14 +1,21 @@
 !> Checkpoint files: the whole state of a dynamic run in one binary file written with MPI-IO,
-!> in global node and cell order, so a run can continue from it on any number of ranks.
-!> Layout (format version 3; native byte order, doubles and 64-bit integers, all 8-byte words):
+!> in global node and cell order, so a run can continue from it on any number of ranks. The
+!> node and cell records are those of a field registry (iem_fields): a node's record is its
+!> node fields' values in registration order, a cell's its cell fields', so what a checkpoint
+!> holds is what the caller registered, and the file records that layout.
+!> Layout (format version 4; native byte order, doubles and 64-bit integers, 8-byte words):
 !>   bytes 0-511: 64 integers (header_ints), bytes 512-1023: 64 reals (header_reals),
-!>   bytes 1024-8191: zeros;
+!>   bytes 1024-8191: the record layout as text (checkpoint_layout; layout_len bytes), then
+!>   zeros;
 !>   from byte 8192: the exact external work and damping dissipation of each rank that wrote
 !>   the file (energy_words doubles a rank: each accumulator's packed state, iem_exact_sum,
 !>   every value an integer below 2^53 held exactly as a double);
-!>   then one record per node (global order): y(1:n_state), acc(1:n_state-2);
-!>   then, with nonlinear springs, one record per cell (global order): for each of its 12
-!>   springs strain, stress, dir, count, e_max_pos, e_max_neg, work, e_rev(1:D), s_rev(1:D).
+!>   then one record per node (global order): the registry's node record (rec_node bytes),
+!>   padded with zeros to whole 8-byte words;
+!>   then, when there are cell fields (rec_cell > 0), one record per cell (global order): the
+!>   registry's cell record, padded likewise.
+!> Integers 21-24 of the header are rec_node, rec_cell (bytes), a hash of the layout text
+!> and the text's length; a file of another layout is refused (checkpoint_check_layout).
 !> The file's size follows from its header exactly. Integer 17 of the header is a checksum of
 !> the whole file: the XOR over every word w_i (i = 0, 1, ...: its index in the file; the
 !> checksum word itself read as 0) of word_hash(i, w_i) (below). Each rank hashes the
@@ -20,6 +27,7 @@
 !> writing leaves the previous checkpoint intact.
 module iem_checkpoint
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
+  use, intrinsic :: iso_fortran_env, only: int8
   use iem_paths, only: mpiio_name
   use mpi_f08, only: MPI_Comm, MPI_File, MPI_Datatype, MPI_Status, MPI_Comm_rank, &
                      MPI_Comm_size, MPI_File_open, MPI_File_close, MPI_File_set_view, &
@@ -28,26 +36,35 @@ module iem_checkpoint
                      MPI_Type_free, MPI_Bcast, &
                      MPI_Barrier, MPI_Allreduce, MPI_MAX, MPI_BXOR, MPI_INTEGER, MPI_INTEGER8, &
                      MPI_DOUBLE_PRECISION, MPI_MODE_CREATE, MPI_MODE_WRONLY, MPI_MODE_RDONLY, &
-                     MPI_INFO_NULL, MPI_OFFSET_KIND, MPI_ADDRESS_KIND, MPI_STATUS_IGNORE, &
+                     MPI_INFO_NULL, MPI_OFFSET_KIND, MPI_BYTE, MPI_ADDRESS_KIND, &
+                     MPI_STATUS_IGNORE, &
                      MPI_IN_PLACE
   use iem_kinds, only: wp, i8
   use iem_strings, only: itoa
   use iem_exact_sum, only: exact_sum_t, exact_sum_packed_size
+  use iem_fields, only: field_registry_t, field_slot_t, centre_node, centre_cell, kind_real
+  use iem_word_hash, only: word_hash, words_hash, records_hash, text_hash
   implicit none
   private
   public :: checkpoint_header_t, checkpoint_write, checkpoint_read_header, checkpoint_verify
   public :: checkpoint_read, checkpoint_magic, checkpoint_version, word_hash
+  public :: checkpoint_layout, checkpoint_check_layout
 
   integer(i8), parameter :: checkpoint_magic = 4915430829614186819_i8  ! 'CHKPTIEM' as bytes
-  !> The format this iem writes and reads (1: before the checksum).
-  integer(i8), parameter :: checkpoint_version = 3
+  !> The format this iem writes and reads (1: before the checksum; 3: records per array,
+  !> before the field registry).
+  integer(i8), parameter :: checkpoint_version = 4
   !> Words of each rank's energy slot: the packed external-work and damping accumulators.
   integer, parameter, public :: energy_words = 2*exact_sum_packed_size
   integer(i8), parameter :: header_bytes = 8192_i8, n_header = 64
+  !> Byte offset and room of the layout text in the header.
+  integer(i8), parameter :: layout_at = 1024_i8, layout_room = header_bytes - layout_at
+  !> Largest record a header may announce (bytes).
+  integer(i8), parameter :: max_record = 2_i8**26
+  !> Bytes of the buffer through which records are written and read (at least one record).
+  integer(i8), parameter :: chunk_bytes = 2_i8**24
   !> Word index of the checksum in the file (0-based).
   integer(i8), parameter :: checksum_word = 16
-  !> Low 32 bits; the seed of the high lane.
-  integer(i8), parameter :: mask32 = 4294967295_i8, seed32 = 2654435769_i8
   !> Words a rank reads at once when checking the checksum.
   integer(i8), parameter :: read_chunk = 1048576_i8
 
@@ -56,6 +73,10 @@ module iem_checkpoint
     integer(i8) :: version = checkpoint_version, nx = 0, ny = 0, n_state = 0, nonlinear = 0
     integer(i8) :: depth = 0, verlet = 0, step = 0, n_samples = 0, n_frames = 0, n_ranks = 0
     integer(i8) :: model_hash = 0, warned = 0, n_nodes = 0, n_cells = 0
+    !> Bytes of a node's and of a cell's record (0: no cell records), the hash of the layout
+    !> text (checkpoint_layout) and the text (as stored: at most layout_room bytes).
+    integer(i8) :: rec_node = 0, rec_cell = 0, layout_hash = 0
+    character(len=:), allocatable :: layout
     !> Checksum of the file (see above); the signal the run stopped on (0: none).
     integer(i8) :: checksum = 0, stop_signal = 0
     real(wp) :: t = 0.0_wp, dt = 0.0_wp, e0 = 0.0_wp, e_scale = 0.0_wp
@@ -76,78 +97,165 @@ module iem_checkpoint
 
 contains
 
-  !> Record length (doubles) of a node and of a cell for a header.
+  !> Record length in the file (8-byte words) of a node and of a cell for a header.
   pure subroutine record_sizes(h, rec_n, rec_c)
     type(checkpoint_header_t), intent(in) :: h
     integer, intent(out) :: rec_n, rec_c
-    rec_n = int(2*h%n_state - 2)
-    rec_c = 0
-    if (h%nonlinear /= 0) rec_c = int(12*(7 + 2*h%depth))
+    rec_n = int((h%rec_node + 7)/8)
+    rec_c = int((h%rec_cell + 7)/8)
   end subroutine record_sizes
 
-  !> Write a checkpoint collectively: the header, this rank's (w_ext, w_damp), its owned node
-  !> records node_rec(:, k) at the ascending global indices owned_gids(k), and its cell
-  !> records cell_rec(:, k) at the ascending global cell indices cell_gids(k) (each cell
-  !> written by one rank), with the checksum of the whole. stat /= 0 with msg on every rank
-  !> on failure.
-  subroutine checkpoint_write(path, comm, h, energy, owned_gids, node_rec, cell_gids, &
-                              cell_rec, stat, msg)
+  !> The record layout of reg as text, e.g. 'node: y 4 real(8), acc 2 real(8); cell: strain
+  !> 12 real(8), ..., dir 12 integer(4), ...' (fields in registration order; 'none' for a
+  !> centre without fields): what a checkpoint records and compares.
+  function checkpoint_layout(reg) result(text)
+    type(field_registry_t), intent(in) :: reg
+    character(len=:), allocatable :: text
+    text = 'node: '//centre_text(reg%layout(centre_node))//'; cell: '// &
+           centre_text(reg%layout(centre_cell))
+  contains
+    function centre_text(slots) result(t)
+      type(field_slot_t), intent(in) :: slots(:)
+      character(len=:), allocatable :: t
+      integer :: k
+      t = ''
+      do k = 1, size(slots)
+        if (k > 1) t = t//', '
+        t = t//slots(k)%name//' '//itoa(slots(k)%width)
+        if (slots(k)%kind == kind_real) then
+          t = t//' real('
+        else
+          t = t//' integer('
+        end if
+        t = t//itoa(slots(k)%bytes/slots(k)%width)//')'
+      end do
+      if (size(slots) == 0) t = 'none'
+    end function centre_text
+  end function checkpoint_layout
+
+  !> Check that a checkpoint's records have the layout of reg: stat /= 0 with msg (without
+  !> the path) naming both layouts otherwise.
+  subroutine checkpoint_check_layout(h, reg, stat, msg)
+    type(checkpoint_header_t), intent(in) :: h
+    type(field_registry_t), intent(in) :: reg
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=:), allocatable :: mine
+    mine = checkpoint_layout(reg)
+    stat = 0
+    msg = ''
+    if (h%layout_hash /= text_hash(mine) .or. h%rec_node /= reg%record_bytes(centre_node) .or. &
+        h%rec_cell /= reg%record_bytes(centre_cell) .or. &
+        h%layout /= mine(1:min(len(mine), int(layout_room)))) then
+      stat = 1
+      msg = 'holds records of another layout ('//h%layout//') than this run writes ('// &
+            mine//'): it was written by another iem or for another kind of run'
+    end if
+  end subroutine checkpoint_check_layout
+
+  !> The records of entities ents of a centre of reg, each padded to n words, as words(n, k).
+  subroutine pack_records(reg, centre, ents, n, words)
+    type(field_registry_t), intent(in) :: reg
+    integer, intent(in) :: centre, ents(:), n
+    integer(i8), intent(out) :: words(:, :)
+    integer(int8), allocatable :: rec(:)
+    integer :: k
+    allocate(rec(8*n))
+    rec = 0
+    do k = 1, size(ents)
+      call reg%pack_one(centre, ents(k), rec)
+      words(:, k) = transfer(rec, 0_i8, n)
+    end do
+  end subroutine pack_records
+
+  !> Set the entities ents of a centre of reg from the records words(n, k).
+  subroutine unpack_records(reg, centre, ents, n, words)
+    type(field_registry_t), intent(inout) :: reg
+    integer, intent(in) :: centre, ents(:), n
+    integer(i8), intent(in) :: words(:, :)
+    integer :: k
+    do k = 1, size(ents)
+      call reg%unpack_one(centre, ents(k), transfer(words(:, k), 0_int8, 8*n))
+    end do
+  end subroutine unpack_records
+
+  !> Write a checkpoint collectively: the header (with reg's record layout), this rank's
+  !> (w_ext, w_damp), the node records of reg's node entities 1, 2, ... at the ascending
+  !> global indices node_gids, and the cell records of reg's cell entities cell_ents(k) at
+  !> the ascending global cell indices cell_gids(k) (each cell written by one rank), with
+  !> the checksum of the whole. stat /= 0 with msg on every rank on failure (the previous
+  !> file at path intact).
+  subroutine checkpoint_write(path, comm, h, energy, reg, node_gids, cell_ents, cell_gids, &
+                              stat, msg)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
     type(checkpoint_header_t), intent(in) :: h
     real(wp), intent(in) :: energy(energy_words)
-    integer(i8), intent(in) :: owned_gids(:), cell_gids(:)
-    real(wp), intent(inout) :: node_rec(:, :), cell_rec(:, :)
+    ! (not changed: inout only for move_records, which also reads)
+    type(field_registry_t), intent(inout) :: reg
+    integer(i8), intent(in) :: node_gids(:), cell_gids(:)
+    integer, intent(in) :: cell_ents(:)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     type(MPI_File) :: fh
     type(checkpoint_header_t) :: hc
-    integer :: rank, ierr, ierr2, rec_n, rec_c
+    integer :: rank, ierr, ierr2, rec_n, rec_c, k
     integer(MPI_OFFSET_KIND) :: off_n, off_c
-    integer(i8) :: sum, w
+    integer(i8) :: sum
     character(len=:), allocatable :: tmp
 
     call MPI_Comm_rank(comm, rank)
-    call record_sizes(h, rec_n, rec_c)
-    off_n = header_bytes + 8_MPI_OFFSET_KIND*energy_words*h%n_ranks
-    off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
-    ! the checksum: every rank hashes the words it writes (rank 0 the header, its checksum
-    ! word as 0, and the zeros after it)
     hc = h
-    hc%checksum = 0
-    sum = 0
-    if (rank == 0) then
-      sum = words_hash(0_i8, header_ints(hc))
-      sum = ieor(sum, words_hash(n_header, transfer(header_reals(hc), 0_i8, int(n_header))))
-      do w = 2*n_header, header_bytes/8 - 1
-        sum = ieor(sum, word_hash(w, 0_i8))
-      end do
-    end if
-    sum = ieor(sum, words_hash(header_bytes/8 + int(energy_words, i8)*rank, &
-                               transfer(energy, 0_i8, energy_words)))
-    sum = ieor(sum, records_hash(off_n/8, rec_n, owned_gids, node_rec))
-    if (rec_c > 0) sum = ieor(sum, records_hash(off_c/8, rec_c, cell_gids, cell_rec))
-    call MPI_Allreduce(MPI_IN_PLACE, sum, 1, MPI_INTEGER8, MPI_BXOR, comm)
-    hc%checksum = sum
-    tmp = path//'.tmp'
+    hc%rec_node = reg%record_bytes(centre_node)
+    hc%rec_cell = reg%record_bytes(centre_cell)
+    hc%layout = checkpoint_layout(reg)
+    hc%layout_hash = text_hash(hc%layout)
+    if (len(hc%layout) > layout_room) hc%layout = hc%layout(1:layout_room)
+    call record_sizes(hc, rec_n, rec_c)
     stat = 0
     msg = ''
+    off_n = header_bytes + 8_MPI_OFFSET_KIND*energy_words*hc%n_ranks
+    off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*hc%n_nodes
+    tmp = path//'.tmp'
     call MPI_File_open(comm, mpiio_name(tmp), ior(MPI_MODE_CREATE, MPI_MODE_WRONLY), &
                        MPI_INFO_NULL, fh, ierr)
     call agree(ierr, 'cannot create '//tmp)
     if (stat /= 0) return
-    if (rank == 0) call MPI_File_write_at(fh, 0_MPI_OFFSET_KIND, header_ints(hc), &
-                                          int(n_header), MPI_INTEGER8, MPI_STATUS_IGNORE, ierr)
-    if (rank == 0) call MPI_File_write_at(fh, int(8*n_header, MPI_OFFSET_KIND), &
-                                          header_reals(hc), int(n_header), &
-                                          MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
+    ! the checksum: every rank hashes the words it writes (its energy slot and records; rank
+    ! 0 also the header, its checksum word as 0, and the layout text and the zeros after it)
     call MPI_File_write_at(fh, header_bytes + 8_MPI_OFFSET_KIND*energy_words*rank, energy, &
-                           energy_words, MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr2)
-    ierr = max(ierr, ierr2)
-    call transfer_records(fh, off_n, rec_n, owned_gids, node_rec, .true., ierr2)
+                           energy_words, MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
+    sum = words_hash(header_bytes/8 + int(energy_words, i8)*rank, &
+                     transfer(energy, 0_i8, energy_words))
+    call move_records(fh, comm, off_n, rec_n, reg, centre_node, [(k, k = 1, size(node_gids))], &
+                      node_gids, .true., sum, ierr2)
     ierr = max(ierr, ierr2)
     if (rec_c > 0) then
-      call transfer_records(fh, off_c, rec_c, cell_gids, cell_rec, .true., ierr2)
+      call move_records(fh, comm, off_c, rec_c, reg, centre_cell, cell_ents, cell_gids, .true., &
+                        sum, ierr2)
+      ierr = max(ierr, ierr2)
+    end if
+    hc%checksum = 0
+    if (rank == 0) then
+      sum = ieor(sum, words_hash(0_i8, header_ints(hc)))
+      sum = ieor(sum, words_hash(n_header, transfer(header_reals(hc), 0_i8, int(n_header))))
+      sum = ieor(sum, words_hash(layout_at/8, layout_words(hc%layout)))
+    end if
+    call MPI_Allreduce(MPI_IN_PLACE, sum, 1, MPI_INTEGER8, MPI_BXOR, comm)
+    hc%checksum = sum
+    ! the header last, in the file's own view (the records' views set their own)
+    call MPI_File_set_view(fh, 0_MPI_OFFSET_KIND, MPI_BYTE, MPI_BYTE, 'native', MPI_INFO_NULL, &
+                           ierr2)
+    ierr = max(ierr, ierr2)
+    if (rank == 0) then
+      call MPI_File_write_at(fh, 0_MPI_OFFSET_KIND, header_ints(hc), int(n_header), &
+                             MPI_INTEGER8, MPI_STATUS_IGNORE, ierr2)
+      ierr = max(ierr, ierr2)
+      call MPI_File_write_at(fh, int(8*n_header, MPI_OFFSET_KIND), header_reals(hc), &
+                             int(n_header), MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr2)
+      ierr = max(ierr, ierr2)
+      call MPI_File_write_at(fh, int(layout_at, MPI_OFFSET_KIND), layout_words(hc%layout), &
+                             int(layout_room/8), MPI_INTEGER8, MPI_STATUS_IGNORE, ierr2)
       ierr = max(ierr, ierr2)
     end if
     call MPI_File_close(fh, ierr2)
@@ -186,13 +294,14 @@ contains
     type(checkpoint_header_t), intent(out) :: h
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer(i8) :: ints(n_header), info(2)
+    integer(i8) :: ints(n_header), info(2), text(layout_room/8)
     real(wp) :: reals(n_header)
     integer :: rank, unit, ios
     integer(i8) :: nbytes, expect
     call MPI_Comm_rank(comm, rank)
     ints = 0
     reals = 0.0_wp
+    text = 0
     ! info: (what is wrong, the file's size); what: 0 ok, 1 unreadable, 2 too short,
     ! 3 not a checkpoint
     info = 0
@@ -208,6 +317,8 @@ contains
         else
           read(unit, iostat=ios) ints
           if (ios == 0) read(unit, iostat=ios) reals
+          ! (a file shorter than the header's 8192 bytes is refused by its size below)
+          if (ios == 0 .and. info(2) >= header_bytes) read(unit, iostat=ios) text
           if (ios /= 0) info(1) = 1
           if (ios == 0 .and. ints(1) /= checkpoint_magic) info(1) = 3
         end if
@@ -217,6 +328,7 @@ contains
     call MPI_Bcast(info, 2, MPI_INTEGER8, 0, comm)
     call MPI_Bcast(ints, int(n_header), MPI_INTEGER8, 0, comm)
     call MPI_Bcast(reals, int(n_header), MPI_DOUBLE_PRECISION, 0, comm)
+    call MPI_Bcast(text, int(layout_room/8), MPI_INTEGER8, 0, comm)
     stat = int(min(info(1), 1_i8))
     nbytes = info(2)
     select case (info(1))
@@ -240,6 +352,12 @@ contains
     h%n_samples = ints(10); h%n_frames = ints(11); h%n_ranks = ints(12)
     h%model_hash = ints(13); h%warned = ints(14); h%n_nodes = ints(15); h%n_cells = ints(16)
     h%checksum = ints(17); h%stop_signal = ints(18)
+    h%rec_node = ints(21); h%rec_cell = ints(22); h%layout_hash = ints(23)
+    h%layout = ''
+    if (ints(24) >= 0 .and. ints(24) <= layout_room) then
+      h%layout = transfer(text, repeat(' ', int(layout_room)))
+      h%layout = h%layout(1:ints(24))
+    end if
     h%t = reals(1); h%dt = reals(2); h%e0 = reals(3); h%e_scale = reals(4)
     h%last_balance = reals(5); h%w_ext = reals(6); h%w_damp = reals(7)
     h%last_sample = reals(8:13); h%last_frame_time = reals(14)
@@ -250,7 +368,7 @@ contains
     else if (ints(19) /= storage_size(1.0_wp)/8 .or. ints(20) /= storage_size(1_i8)/8) then
       msg = 'was written with other number kinds ('//itoa(ints(19))//'-byte reals, '// &
             itoa(ints(20))//'-byte integers)'
-    else if (.not. plausible(h)) then
+    else if (.not. plausible(h) .or. ints(24) < 0 .or. ints(24) > layout_room) then
       msg = 'has a damaged header (inconsistent sizes or counts)'
     else
       expect = file_bytes(h)
@@ -318,17 +436,18 @@ contains
     end if
   end subroutine checkpoint_verify
 
-  !> Read the node records of owned_gids and the cell records of cell_gids (both ascending)
-  !> and this rank's (w_ext, w_damp): its own when the file was written on as many ranks,
-  !> else the totals on rank 0 and zeros elsewhere. Collective.
-  subroutine checkpoint_read(path, comm, h, energy, owned_gids, node_rec, cell_gids, cell_rec, &
-                             stat, msg)
+  !> Read the records of the global nodes node_gids into reg's node entities 1, 2, ... and
+  !> those of the global cells cell_gids into its cell entities 1, 2, ... (both lists
+  !> ascending; the file's layout is reg's: checkpoint_check_layout), and this rank's
+  !> (w_ext, w_damp): its own when the file was written on as many ranks, else the totals on
+  !> rank 0 and zeros elsewhere. Collective.
+  subroutine checkpoint_read(path, comm, h, energy, reg, node_gids, cell_gids, stat, msg)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
     type(checkpoint_header_t), intent(in) :: h
     real(wp), intent(out) :: energy(energy_words)
-    integer(i8), intent(in) :: owned_gids(:), cell_gids(:)
-    real(wp), intent(out) :: node_rec(:, :), cell_rec(:, :)
+    type(field_registry_t), intent(inout) :: reg
+    integer(i8), intent(in) :: node_gids(:), cell_gids(:)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     type(MPI_File) :: fh
@@ -336,7 +455,8 @@ contains
     integer(MPI_OFFSET_KIND) :: off_n, off_c
     real(wp), allocatable :: all_slots(:, :)
     type(exact_sum_t) :: total(2), one
-    integer(i8) :: packed(exact_sum_packed_size)
+    integer(i8) :: packed(exact_sum_packed_size), unused
+    integer :: k
     call MPI_Comm_rank(comm, rank)
     call MPI_Comm_size(comm, n_ranks)
     call record_sizes(h, rec_n, rec_c)
@@ -373,10 +493,12 @@ contains
     end if
     off_n = header_bytes + 8_MPI_OFFSET_KIND*energy_words*h%n_ranks
     off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
-    call transfer_records(fh, off_n, rec_n, owned_gids, node_rec, .false., ierr2)
+    call move_records(fh, comm, off_n, rec_n, reg, centre_node, [(k, k = 1, size(node_gids))], &
+                      node_gids, .false., unused, ierr2)
     ierr = max(ierr, ierr2)
     if (rec_c > 0) then
-      call transfer_records(fh, off_c, rec_c, cell_gids, cell_rec, .false., ierr2)
+      call move_records(fh, comm, off_c, rec_c, reg, centre_cell, [(k, k = 1, size(cell_gids))], &
+                        cell_gids, .false., unused, ierr2)
       ierr = max(ierr, ierr2)
     end if
     call MPI_File_close(fh, ierr2)
@@ -387,23 +509,57 @@ contains
     end if
   end subroutine checkpoint_read
 
-  !> Collective write (or read) of records rec(:, k) of length n at the global indices
+  !> Collective write (or read) of the records of reg's entities ents(k) of a centre at the
+  !> global indices gids(k) (ascending) of the record array at byte offset off, n words a
+  !> record, through a buffer of at most chunk_bytes (in as many rounds on every rank as the
+  !> rank with the most records needs). Writing, sum XORs in the hashes of the words written.
+  subroutine move_records(fh, comm, off, n, reg, centre, ents, gids, write, sum, ierr)
+    type(MPI_File), intent(inout) :: fh
+    type(MPI_Comm), intent(in) :: comm
+    integer(MPI_OFFSET_KIND), intent(in) :: off
+    integer, intent(in) :: n, centre, ents(:)
+    type(field_registry_t), intent(inout) :: reg
+    integer(i8), intent(in) :: gids(:)
+    logical, intent(in) :: write
+    integer(i8), intent(inout) :: sum
+    integer, intent(out) :: ierr
+    integer(i8), allocatable :: buf(:, :)
+    integer :: m, rounds, r, lo, hi, e
+    m = int(max(1_i8, chunk_bytes/(8_i8*n)))
+    rounds = (size(gids) + m - 1)/m
+    call MPI_Allreduce(MPI_IN_PLACE, rounds, 1, MPI_INTEGER, MPI_MAX, comm)
+    allocate(buf(n, min(m, size(gids))), stat=ierr)
+    do r = 1, rounds
+      lo = min((r - 1)*m + 1, size(gids) + 1)
+      hi = min(r*m, size(gids))
+      if (ierr /= 0) hi = lo - 1
+      if (write) then
+        call pack_records(reg, centre, ents(lo:hi), n, buf(:, 1:hi - lo + 1))
+        sum = ieor(sum, records_hash(off/8, n, gids(lo:hi), buf(:, 1:hi - lo + 1)))
+      end if
+      call transfer_records(fh, off, n, gids(lo:hi), buf(:, 1:hi - lo + 1), write, e)
+      ierr = max(ierr, e)
+      if (.not. write) call unpack_records(reg, centre, ents(lo:hi), n, buf(:, 1:hi - lo + 1))
+    end do
+  end subroutine move_records
+
+  !> Collective write (or read) of records rec(:, k) of n words at the global indices
   !> gids(k) (ascending) of the record array that starts at byte offset off.
   subroutine transfer_records(fh, off, n, gids, rec, write, ierr)
     type(MPI_File), intent(inout) :: fh
     integer(MPI_OFFSET_KIND), intent(in) :: off
     integer, intent(in) :: n
     integer(i8), intent(in) :: gids(:)
-    real(wp), intent(inout) :: rec(:, :)
+    integer(i8), intent(inout) :: rec(:, :)
     logical, intent(in) :: write
     integer, intent(out) :: ierr
     integer, allocatable :: lens(:)
     integer(MPI_ADDRESS_KIND), allocatable :: disp(:)
     type(MPI_Datatype) :: view, record
     integer :: k, runs, e
-    ! one record (n reals) is the unit of the view and of the count, so that no count exceeds
+    ! one record (n words) is the unit of the view and of the count, so that no count exceeds
     ! the number of records of this rank (n times it may pass 2^31)
-    call MPI_Type_contiguous(n, MPI_DOUBLE_PRECISION, record, ierr)
+    call MPI_Type_contiguous(n, MPI_INTEGER8, record, ierr)
     call MPI_Type_commit(record, e)
     ierr = max(ierr, e)
     ! contiguous runs of global indices
@@ -447,7 +603,20 @@ contains
                h%verlet, h%step, h%n_samples, h%n_frames, h%n_ranks, h%model_hash, h%warned, &
                h%n_nodes, h%n_cells, h%checksum, h%stop_signal, &
                int(storage_size(1.0_wp)/8, i8), int(storage_size(1_i8)/8, i8)]
+    v(21:23) = [h%rec_node, h%rec_cell, h%layout_hash]
+    v(24) = 0
+    if (allocated(h%layout)) v(24) = len(h%layout)
   end function header_ints
+
+  !> The layout text as the words of the header's room for it (zero-padded).
+  pure function layout_words(text) result(v)
+    character(len=*), intent(in) :: text
+    integer(i8) :: v(layout_room/8)
+    character(len=layout_room) :: room
+    room = repeat(achar(0), int(layout_room))
+    room(1:min(len(text), int(layout_room))) = text
+    v = transfer(room, 0_i8, int(layout_room/8))
+  end function layout_words
 
   !> The header's reals as written.
   pure function header_reals(h) result(v)
@@ -470,7 +639,9 @@ contains
                 (h%nonlinear == 0 .or. h%nonlinear == 1) .and. h%depth >= 0 .and. &
                 h%depth <= 10000 .and. (h%verlet == 0 .or. h%verlet == 1) .and. &
                 h%step >= 0 .and. h%n_samples >= 0 .and. h%n_frames >= 0 .and. &
-                h%n_ranks >= 1 .and. h%n_ranks <= 2_i8**30 .and. h%dt > 0.0_wp
+                h%n_ranks >= 1 .and. h%n_ranks <= 2_i8**30 .and. h%dt > 0.0_wp .and. &
+                h%rec_node >= 1 .and. h%rec_node <= max_record .and. h%rec_cell >= 0 .and. &
+                h%rec_cell <= max_record
   end function plausible
 
   !> The size in bytes of the checkpoint that header h describes.
@@ -480,58 +651,4 @@ contains
     call record_sizes(h, rec_n, rec_c)
     file_bytes = header_bytes + 8*energy_words*h%n_ranks + 8*(rec_n*h%n_nodes + rec_c*h%n_cells)
   end function file_bytes
-
-  !> The hash of word w at word index i of the file: two 32-bit lanes mixed with murmur3's
-  !> finaliser, seeded by the index; one-to-one in w, so a change of any one word always
-  !> changes the checksum. Integer arithmetic stays below 2**63 (no overflow).
-  elemental integer(i8) function word_hash(i, w) result(z)
-    integer(i8), intent(in) :: i, w
-    integer(i8) :: a, b
-    a = fmix32(ieor(iand(w, mask32), fmix32(iand(i + 1, mask32))))
-    b = fmix32(ieor(ieor(shiftr(w, 32), fmix32(iand(shiftr(i, 32) + seed32, mask32))), a))
-    z = ior(shiftl(b, 32), fmix32(ieor(a, b)))
-  end function word_hash
-
-  !> murmur3's 32-bit finaliser of h (0 <= h < 2**32).
-  elemental integer(i8) function fmix32(h) result(x)
-    integer(i8), intent(in) :: h
-    x = ieor(h, shiftr(h, 16))
-    x = mul32(x, 2246822507_i8)
-    x = ieor(x, shiftr(x, 13))
-    x = mul32(x, 3266489909_i8)
-    x = ieor(x, shiftr(x, 16))
-  end function fmix32
-
-  !> x*c modulo 2**32 for 0 <= x, c < 2**32, in 16-bit halves of c.
-  elemental integer(i8) function mul32(x, c)
-    integer(i8), intent(in) :: x, c
-    mul32 = iand(x*iand(c, 65535_i8) + shiftl(iand(x*shiftr(c, 16), 65535_i8), 16), mask32)
-  end function mul32
-
-  !> XOR of the hashes of the words v(1:) stored from word index first on.
-  pure integer(i8) function words_hash(first, v) result(x)
-    integer(i8), intent(in) :: first, v(:)
-    integer :: j
-    x = 0
-    do j = 1, size(v)
-      x = ieor(x, word_hash(first + j - 1, v(j)))
-    end do
-  end function words_hash
-
-  !> XOR of the hashes of the records rec(:, k) of length n stored at global indices gids(k)
-  !> of the record array that starts at word index first.
-  pure integer(i8) function records_hash(first, n, gids, rec) result(x)
-    integer(i8), intent(in) :: first, gids(:)
-    integer, intent(in) :: n
-    real(wp), intent(in) :: rec(:, :)
-    integer(i8) :: base
-    integer :: j, k
-    x = 0
-    do k = 1, size(gids)
-      base = first + gids(k)*n
-      do j = 1, n
-        x = ieor(x, word_hash(base + j - 1, transfer(rec(j, k), 0_i8)))
-      end do
-    end do
-  end function records_hash
 end module iem_checkpoint

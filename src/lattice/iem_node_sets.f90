@@ -50,7 +50,7 @@ contains
         a = lat%cell_nodes(q, c)
         b = lat%cell_nodes(mod(q, 4) + 1, c)
         if (edge_set) then
-          take = edge_in(spec, body, lat, c, q)
+          take = edge_in(spec, lat, c, q)
           if (take) then
             in_set(a) = .true.
             in_set(b) = .true.
@@ -112,9 +112,8 @@ contains
 
   !> Whether open edge q of local cell c belongs to a boundary set ('boundary', 'shape',
   !> 'face').
-  pure logical function edge_in(spec, body, lat, c, q) result(inside)
+  pure logical function edge_in(spec, lat, c, q) result(inside)
     type(node_set_spec_t), intent(in) :: spec
-    type(body_t), intent(in) :: body
     type(local_lattice_t), intent(in) :: lat
     integer, intent(in) :: c, q
     real(wp) :: n(2)

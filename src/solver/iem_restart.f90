@@ -5,9 +5,9 @@ submodule (iem_simulation) iem_restart
   use mpi_f08, only: MPI_Bcast, MPI_SUM, MPI_INTEGER8
   use iem_kinds, only: mpi_wp
   use iem_checkpoint, only: checkpoint_write, checkpoint_read_header, checkpoint_verify, &
-                            checkpoint_read, word_hash, energy_words
+                            checkpoint_read, checkpoint_check_layout, energy_words
+  use iem_word_hash, only: text_hash
   use iem_h5_inspect, only: h5_output_inspect
-  use iem_alloc_guard, only: alloc_guard_t
   use iem_exact_sum, only: exact_sum_t, exact_sum_allreduce, exact_sum_packed_size
   implicit none
 
@@ -15,13 +15,14 @@ contains
 
   !> Check, before anything is written, that the checkpoint to continue from is whole and
   !> belongs to this run: its header, exact size and checksum (every byte), this model, grid
-  !> and time step, and that output_file is the output it was written with and holds what it
+  !> and time step, the record layout of this run's checkpointed fields, and that output_file is the output it was written with and holds what it
   !> covers. Refused (stat /= 0, msg naming &run restart and what is wrong) otherwise; nothing
   !> is opened for writing. Collective.
   module procedure check_restart
     character(len=:), allocatable :: what, path, why, out
     integer(i8) :: have(2)
     real(wp) :: tail(7)
+    type(field_registry_t), target :: reg
     path = trim(this%cfg%run%restart)
     out = trim(this%cfg%run%output_file)
     call checkpoint_read_header(path, this%comm, this%restart, stat, why)
@@ -44,6 +45,14 @@ contains
       stat = 1
       msg = trim(this%cfg%input_file)//": &run: restart = '"//path//"' was written for "// &
             what//'; it can only continue the run that wrote it'
+      return
+    end if
+    ! the records: this run's checkpointed fields (the registration alone, no values)
+    call state_layout(this, reg, .true., stat)
+    if (stat == 0) call checkpoint_check_layout(this%restart, reg, stat, why)
+    call reg%free()
+    if (stat /= 0) then
+      msg = trim(this%cfg%input_file)//": &run: restart = '"//path//"' "//why
       return
     end if
     ! the output: rank 0 looks at it (read-only) and all agree
@@ -78,27 +87,27 @@ contains
     if (this%restart%step == 0) this%restart%step = -1
   end procedure check_restart
 
-  !> Write a checkpoint of the state at the top of step k (before its rates): y and the rates
-  !> of every owned node, the springs' history, the run's counters, the signal the run stops
-  !> on (0: none). Collective.
+  !> Write a checkpoint of the state at the top of step k (before its rates): the registry
+  !> of the run's checkpointed fields (state_to_registry), its record of every owned node and
+  !> every counted cell, the run's counters, the signal the run stops on (0: none).
+  !> Collective.
   module procedure write_checkpoint
     type(checkpoint_header_t) :: h
-    real(wp), allocatable :: nodes(:, :), cells(:, :)
+    type(field_registry_t), target :: reg
     integer(i8), allocatable :: cg(:)
+    integer, allocatable :: cells(:)
     type(exact_sum_t) :: acc(2)
     integer(i8) :: packed(exact_sum_packed_size, 2)
     real(wp) :: slot(energy_words)
-    integer :: l, ns, c, n, ierr
-    type(alloc_guard_t) :: guard
+    integer :: l, c, n, worst
     call flush_history(this, stat)
     if (stat /= 0) then
       msg = 'writing the history before a checkpoint failed'
       return
     end if
-    ns = this%model%n_state
     h%nx = this%grid%nx
     h%ny = this%grid%ny
-    h%n_state = ns
+    h%n_state = this%model%n_state
     h%nonlinear = merge(1_i8, 0_i8, this%model%nonlinear)
     h%depth = this%cfg%materials(1)%history_depth
     if (this%model%nonlinear) h%depth = this%model%nl%state%depth
@@ -128,87 +137,59 @@ contains
     h%stop_signal = sig
     h%last_sample = this%last_sample
     h%last_frame_time = this%last_frame_time
+    ! the registry comes and goes with the checkpoint: out of memory ends the run cleanly
+    call state_to_registry(this, reg, .true., stat)
+    call MPI_Allreduce(stat, worst, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    if (worst /= 0) then
+      stat = 1
+      msg = 'checkpoint: '//trim(this%cfg%run%checkpoint_file)//': out of memory for the '// &
+            'registry of the fields'
+      call reg%free()
+      return
+    end if
+    ! owned nodes are the registry's first node entities; the counted cells, by global index
     n = this%lat%n_owned
     cg = counted_cell_gids(this)
-    ! the buffers of a checkpoint come and go with it: out of memory ends the run cleanly
-    allocate(nodes(2*ns - 2, n), stat=ierr)
-    call guard%note(ierr, "the checkpoint's node buffer", 8.0_wp*(2*ns - 2)*n)
-    if (this%model%nonlinear .and. ierr == 0) then
-      allocate(cells(12*(7 + 2*h%depth), size(cg)), stat=ierr)
-      call guard%note(ierr, "the checkpoint's spring buffer", 96.0_wp*(7 + 2*h%depth)*size(cg))
-    end if
-    call guard%agree(this%comm, trim(this%cfg%run%checkpoint_file), stat, msg)
-    if (stat /= 0) return
-    do l = 1, n
-      nodes(1:ns, l) = this%st%y(1:ns, l)
-      nodes(ns + 1:, l) = this%st%acc(:, l)
+    allocate(cells(size(cg)))
+    c = 0
+    do l = 1, this%lat%n_cells
+      if (.not. this%lat%cell_counted(l)) cycle
+      c = c + 1
+      cells(c) = l
     end do
-    if (this%model%nonlinear) then
-      c = 0
-      do l = 1, this%lat%n_cells
-        if (.not. this%lat%cell_counted(l)) cycle
-        c = c + 1
-        cells(:, c) = pack_springs(this, l, int(h%depth))
-      end do
-    else
-      allocate(cells(0, 0))
-    end if
-    call checkpoint_write(trim(this%cfg%run%checkpoint_file), this%comm, h, &
-                          slot, this%lat%gid(1:n), nodes, cg, cells, &
-                          stat, msg)
+    call checkpoint_write(trim(this%cfg%run%checkpoint_file), this%comm, h, slot, reg, &
+                          this%lat%gid(1:n), cells, cg, stat, msg)
+    call reg%free()
     if (stat == 0) call log_info('checkpoint: '//trim(this%cfg%run%checkpoint_file)// &
                                  ' at step '//itoa(k)//', t = '//rtoa(t)//' s')
   end procedure write_checkpoint
 
-  !> The history of the 12 springs of local cell l as one record.
-  function pack_springs(this, l, depth) result(r)
-    type(simulation_t), intent(in) :: this
-    integer, intent(in) :: l, depth
-    real(wp) :: r(12*(7 + 2*depth))
-    integer :: j, i, o
-    associate(st => this%model%nl%state)
-      do j = 1, 12
-        i = 12*(l - 1) + j
-        o = (j - 1)*(7 + 2*depth)
-        r(o + 1:o + 7) = [st%strain(i), st%stress(i), real(st%dir(i), wp), &
-                          real(st%count(i), wp), st%e_max_pos(i), st%e_max_neg(i), &
-                          this%model%nl%work(i)]
-        r(o + 8:o + 7 + depth) = st%e_rev(:, i)
-        r(o + 8 + depth:o + 7 + 2*depth) = st%s_rev(:, i)
-      end do
-    end associate
-  end function pack_springs
-
-  !> Restore the state of the checkpoint this run continues from. Collective.
+  !> Restore the state of the checkpoint this run continues from: the run's checkpointed
+  !> fields registered and copied in (so the halo columns keep their values), the records of
+  !> the owned nodes and of every local cell read over them, and copied back. Collective.
   module procedure load_checkpoint
-    real(wp), allocatable :: nodes(:, :), cells(:, :)
+    type(field_registry_t), target :: reg
     integer(i8), allocatable :: cg(:)
     real(wp) :: energy(energy_words)
-    integer :: l, ns, n, d, j, i, o
-    ns = this%model%n_state
-    n = this%lat%n_owned
-    d = int(this%restart%depth)
-    allocate(nodes(2*ns - 2, n))
-    allocate(cg(this%lat%n_cells))
-    do l = 1, this%lat%n_cells
-      cg(l) = this%lat%cell_gid(l)
-    end do
-    if (this%model%nonlinear) then
-      allocate(cells(12*(7 + 2*d), this%lat%n_cells))
-    else
-      allocate(cells(0, 0))
-      cg = cg(1:0)
-    end if
-    call checkpoint_read(trim(this%cfg%run%restart), this%comm, this%restart, energy, &
-                         this%lat%gid(1:n), nodes, cg, cells, stat, msg)
-    if (stat /= 0) then
-      msg = 'restart: '//msg
+    integer :: worst
+    call state_to_registry(this, reg, .true., stat)
+    call MPI_Allreduce(stat, worst, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    if (worst /= 0) then
+      stat = 1
+      msg = 'restart: out of memory for the registry of the fields'
+      call reg%free()
       return
     end if
-    do l = 1, n
-      this%st%y(1:ns, l) = nodes(1:ns, l)
-      this%st%acc(:, l) = nodes(ns + 1:, l)
-    end do
+    cg = this%lat%cell_gid(1:this%lat%n_cells)
+    call checkpoint_read(trim(this%cfg%run%restart), this%comm, this%restart, energy, reg, &
+                         this%lat%gid(1:this%lat%n_owned), cg, stat, msg)
+    if (stat /= 0) then
+      msg = 'restart: '//msg
+      call reg%free()
+      return
+    end if
+    call state_from_registry(this, reg)
+    call reg%free()
     call this%model%w_ext_acc%unpack(int(energy(1:exact_sum_packed_size), i8))
     call this%model%w_damp_acc%unpack(int(energy(exact_sum_packed_size + 1:), i8))
     this%e0 = this%restart%e0
@@ -218,25 +199,6 @@ contains
     this%last_sample = this%restart%last_sample
     this%last_frame_time = this%restart%last_frame_time
     call keep_good_state(this, this%restart%step, this%restart%t)
-    if (this%model%nonlinear) then
-      associate(st => this%model%nl%state)
-        do l = 1, this%lat%n_cells
-          do j = 1, 12
-            i = 12*(l - 1) + j
-            o = (j - 1)*(7 + 2*d)
-            st%strain(i) = cells(o + 1, l)
-            st%stress(i) = cells(o + 2, l)
-            st%dir(i) = int(cells(o + 3, l), kind(st%dir))
-            st%count(i) = int(cells(o + 4, l), kind(st%count))
-            st%e_max_pos(i) = cells(o + 5, l)
-            st%e_max_neg(i) = cells(o + 6, l)
-            this%model%nl%work(i) = cells(o + 7, l)
-            st%e_rev(:, i) = cells(o + 8:o + 7 + d, l)
-            st%s_rev(:, i) = cells(o + 8 + d:o + 7 + 2*d, l)
-          end do
-        end do
-      end associate
-    end if
     ! the integrator redoes what it needs of the loaded state (its resume, called next)
   end procedure load_checkpoint
 
@@ -288,8 +250,9 @@ contains
                                       this%restart%step, stat, msg)
   end procedure reopen_output
 
-  !> A 64-bit hash (the checkpoint's word hash, chained) of what defines the model (grid, material, damping, conditions,
-  !> loads, initial state, integrator, step): a checkpoint continues only the same model.
+  !> A 64-bit hash (the checkpoint's word hash, chained) of what defines the model (grid,
+  !> material, damping, conditions, loads, initial state, integrator, step): a checkpoint
+  !> continues only the same model.
   integer(i8) function model_hash(this) result(h)
     type(simulation_t), intent(in) :: this
     character(len=:), allocatable :: sig
@@ -323,10 +286,7 @@ contains
                   c%loads(k)%tf%t_start, c%loads(k)%tf%t_ramp])
       end do
     end associate
-    h = 0
-    do k = 1, len(sig)
-      h = word_hash(int(k, i8), ieor(h, int(iachar(sig(k:k)), i8)))
-    end do
+    h = text_hash(sig)
   contains
     subroutine add(v)
       real(wp), intent(in) :: v(:)

@@ -3,8 +3,9 @@
 !> (analysis = 'static'), recording history, frames and progress. This module holds the run's
 !> type and its driver, which only sequences the parts that live in the submodules: set-up
 !> (_setup), the history recorder and frames (_output), checkpoints and continued runs
-!> (iem_restart), the guards (_guards), the static load steps (_static) and the reports
-!> (_report); the integrators are behind iem_integrator's interface (docs/architecture.md).
+!> (iem_restart), the run's fields for checkpoints and repartitioning (_fields), the guards
+!> (_guards), the static load steps (_static) and the reports (_report); the integrators
+!> are behind iem_integrator's interface (docs/architecture.md).
 module iem_simulation
   use mpi_f08, only: MPI_Comm, MPI_Allreduce, MPI_MAX, MPI_IN_PLACE, MPI_Wtime, MPI_LOGICAL, &
     MPI_LAND, MPI_INTEGER
@@ -19,6 +20,7 @@ module iem_simulation
   use iem_integrator, only: integrator_t
   use iem_relaxation, only: relaxation_t
   use iem_checkpoint, only: checkpoint_header_t
+  use iem_fields, only: field_registry_t
   use iem_signals, only: install_signal_handlers, signal_caught
   use iem_h5_output, only: h5_output_t
   use iem_logger, only: log_info
@@ -129,6 +131,31 @@ module iem_simulation
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
     end subroutine checkpoint_if_due
+
+    !> Register the run's per-node and per-cell state (the one list, iem_simulation_fields)
+    !> in reg for this rank's nodes and cells, all of it or, with checkpoint, what a
+    !> checkpoint holds, and copy it in. stat /= 0 when a field could not be added (memory).
+    module subroutine state_to_registry(this, reg, checkpoint, stat)
+      type(simulation_t), intent(inout) :: this
+      type(field_registry_t), intent(inout), target :: reg
+      logical, intent(in) :: checkpoint
+      integer, intent(out) :: stat
+    end subroutine state_to_registry
+
+    !> Copy the fields reg holds back into the run's arrays (sized for reg's entities; a node
+    !> field of owned nodes only fills its array's n_owned columns).
+    module subroutine state_from_registry(this, reg)
+      type(simulation_t), intent(inout) :: this
+      type(field_registry_t), intent(inout), target :: reg
+    end subroutine state_from_registry
+
+    !> The same registration with no nodes and no cells: the record layout alone.
+    module subroutine state_layout(this, reg, checkpoint, stat)
+      type(simulation_t), intent(inout) :: this
+      type(field_registry_t), intent(inout), target :: reg
+      logical, intent(in) :: checkpoint
+      integer, intent(out) :: stat
+    end subroutine state_layout
 
     !> Reopen the output of the interrupted run to append to it.
     module subroutine reopen_output(this, stat, msg)

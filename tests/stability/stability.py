@@ -17,7 +17,8 @@ figure, quoted in docs/stability.md):
                   of the continuation, SIGUSR1 to mpirun, `timeout --foreground -s TERM`
                   on mpirun
   restart_errors  bad restarts: truncated, foreign, corrupted (one byte), old-format, empty,
-                  another model's checkpoint, an output behind or not its own, missing files
+                  another record layout, another model's checkpoint, an output behind or not
+                  its own, missing files
   jobs            the job scripts' continuation after a signal (jobs/resubmit.sh)
 
 Usage: stability.py CASE --iem build/iem --mpiexec mpirun [--mpiexec-flags=--oversubscribe]
@@ -669,10 +670,35 @@ def cmd_jobs(args) -> None:
              "exit 0: nothing to resubmit; exit 3: no resubmission (failure)")
 
 
+def _word_hash(i: int, w: int) -> int:
+    """The checkpoint's hash of word w (unsigned 64-bit) at word index i (iem_word_hash)."""
+    m = 0xFFFFFFFF
+
+    def fmix32(h: int) -> int:
+        h ^= h >> 16
+        h = (h * 0x85EBCA6B) & m
+        h ^= h >> 13
+        h = (h * 0xC2B2AE35) & m
+        return h ^ (h >> 16)
+    a = fmix32((w & m) ^ fmix32((i + 1) & m))
+    b = fmix32(((w >> 32) & m) ^ fmix32(((i >> 32) + 2654435769) & m) ^ a)
+    return (b << 32) | fmix32(a ^ b)
+
+
+def _checkpoint_checksum(data: bytes) -> int:
+    """The checksum of a checkpoint's bytes: XOR of the word hashes, word 16 read as 0."""
+    words = np.frombuffer(data, dtype="<u8")
+    x = 0
+    for i, w in enumerate(words.tolist()):
+        x ^= _word_hash(i, 0 if i == 16 else w)
+    return x
+
+
 def cmd_restart_errors(args) -> None:
     """Bad restarts, each refused before anything is written: a checkpoint truncated, a file
     of the right size that is not a checkpoint, one byte flipped in the body and in the header,
-    a checkpoint of the older format, an empty file, junk, a checkpoint of another model, an
+    a checkpoint of the older format, an empty file, junk, a checkpoint whose records have
+    another layout (a field renamed in it, its checksum recomputed), one of another model, an
     output that ends before the checkpoint or is not the one it was written with, a missing
     checkpoint or output. Each: exit status 2, one message from rank 0 naming &run restart and
     what is wrong, and every file (output, sidecar, checkpoints) byte for byte unchanged."""
@@ -693,6 +719,16 @@ def cmd_restart_errors(args) -> None:
         return bytes(b)
 
     n_samples = struct.unpack_from("<q", good, 9 * 8)[0]
+    # the record layout (header bytes 1024...: text) of another iem: a field renamed, the
+    # checksum made right again, so that only the layout tells it apart
+    layout_len = struct.unpack_from("<q", good, 23 * 8)[0]
+    layout = good[1024:1024 + layout_len].decode()
+    other = layout.replace("acc 2 real(8)", "acx 2 real(8)")
+    rg.check(_checkpoint_checksum(good) == struct.unpack_from("<Q", good, 16 * 8)[0] and
+             other != layout, f"the checksum recomputed here matches; layout {layout!r}")
+    relabelled = bytearray(good)
+    relabelled[1024:1024 + layout_len] = other.encode()
+    struct.pack_into("<Q", relabelled, 16 * 8, _checkpoint_checksum(bytes(relabelled)))
     files = {
         "trunc.chk": good[:size - 100],
         "foreign.chk": rng.integers(0, 256, size, dtype=np.uint8).tobytes(),
@@ -702,6 +738,7 @@ def cmd_restart_errors(args) -> None:
         "old.chk": good[:8] + struct.pack("<q", 1) + good[16:],
         "empty.chk": b"",
         "junk.chk": b"not a checkpoint" * 100,
+        "layout.chk": bytes(relabelled),
     }
     for name, data in files.items():
         (work / name).write_bytes(data)
@@ -724,6 +761,7 @@ def cmd_restart_errors(args) -> None:
         "old_format": (case("old.chk"), "format version 1"),
         "empty": (case("empty.chk"), "is empty"),
         "junk": (case("junk.chk"), "is not an iem checkpoint file"),
+        "other_layout": (case("layout.chk"), "holds records of another layout"),
         "other_model": (case("m.chk").replace("E = 25.0e9", "E = 30.0e9"),
                         "was written for a different model"),
         "output_behind": (case("m.chk", "short.h5"), "is beyond the end of output_file"),

@@ -1,0 +1,136 @@
+!> The run's per-node and per-cell state as fields of a registry (iem_fields), listed once in
+!> each_field below: the checkpoint (iem_restart) and the repartitioning
+!> (iem_simulation_repartition) register it, copy it in, move or write the registry's
+!> records, and copy it back. A field added to the list (e.g. the springs' failure flags) is
+!> checkpointed (when flagged so) and migrated with no other change.
+submodule (iem_simulation) iem_simulation_fields
+  use iem_fields, only: centre_node, centre_cell, kind_real, kind_int
+  use iem_nonlinear_springs, only: springs_per_cell
+  use iem_kinds, only: ip
+  implicit none
+
+  !> What each_field does with each field of the list: add it to the registry, copy the
+  !> run's array into it, or copy it back into the run's array.
+  integer, parameter :: op_register = 1, op_in = 2, op_out = 3
+
+contains
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure state_to_registry
+    call reg%init(this%lat%n_local, this%lat%n_cells)
+    stat = 0
+    call each_field(this, reg, op_register, checkpoint, stat)
+    if (stat == 0) call each_field(this, reg, op_in, checkpoint, stat)
+  end procedure state_to_registry
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure state_from_registry
+    integer :: stat
+    stat = 0
+    call each_field(this, reg, op_out, .false., stat)
+  end procedure state_from_registry
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure state_layout
+    call reg%init(0, 0)
+    stat = 0
+    call each_field(this, reg, op_register, checkpoint, stat)
+  end procedure state_layout
+
+  !> The one list of the run's per-node and per-cell state: for each field its name, centre,
+  !> width (values per node or cell), the run's array (entity after entity: a node field's
+  !> array has n_local or n_owned columns, a cell field's one value set per local cell, so
+  !> the springs' arrays, 12 springs a cell, are cell fields of width 12 or 12*depth) and
+  !> whether a checkpoint holds it. op_register adds the fields (only the checkpointed ones
+  !> when checkpoint); op_in and op_out copy the fields that reg holds in and out.
+  !> Not checkpointed: the NaN guard's last good state (a continued run takes it at the
+  !> step it continues from) and the cells' energies (the integrator's resume recomputes them).
+  subroutine each_field(this, reg, op, checkpoint, stat)
+    type(simulation_t), intent(inout) :: this
+    type(field_registry_t), intent(inout), target :: reg
+    integer, intent(in) :: op
+    logical, intent(in) :: checkpoint
+    integer, intent(inout) :: stat
+    integer :: ns, depth
+
+    ns = this%model%n_state
+    call real_field('y', centre_node, ns, this%st%y, .true.)
+    call real_field('acc', centre_node, ns - 2, this%st%acc, .true.)
+    if (allocated(this%snap)) call real_field('last_good', centre_node, 4, this%snap, .false.)
+    call real_field('cell_energy', centre_cell, 1, this%model%en_cell, .false.)
+    if (this%model%nonlinear) then
+      depth = int(this%model%nl%state%depth)
+      associate(s => this%model%nl%state)
+        call real_field('strain', centre_cell, springs_per_cell, s%strain, .true.)
+        call real_field('stress', centre_cell, springs_per_cell, s%stress, .true.)
+        call real_field('e_max_pos', centre_cell, springs_per_cell, s%e_max_pos, .true.)
+        call real_field('e_max_neg', centre_cell, springs_per_cell, s%e_max_neg, .true.)
+        call real_field('work', centre_cell, springs_per_cell, this%model%nl%work, .true.)
+        call int_field('dir', centre_cell, springs_per_cell, s%dir, .true.)
+        call int_field('count', centre_cell, springs_per_cell, s%count, .true.)
+        call real_field('e_rev', centre_cell, springs_per_cell*depth, s%e_rev, .true.)
+        call real_field('s_rev', centre_cell, springs_per_cell*depth, s%s_rev, .true.)
+      end associate
+    end if
+
+  contains
+
+    !> Register, copy in or copy out one real field whose run's array is a (rank 1 or 2; not
+    !> referenced when registering, so it may be unallocated then).
+    subroutine real_field(name, centre, width, a, checkpointed)
+      character(len=*), intent(in) :: name
+      integer, intent(in) :: centre, width
+      real(wp), allocatable, intent(inout) :: a(..)
+      logical, intent(in) :: checkpointed
+      real(wp), pointer, contiguous :: p(:)
+      integer :: id
+      if (stat /= 0) return
+      if (op == op_register) then
+        if (checkpointed .or. .not. checkpoint) &
+          call reg%add(name, centre, kind_real, width, id, stat)
+        return
+      end if
+      id = reg%find(name)
+      if (id == 0 .or. .not. allocated(a)) return
+      p => reg%real_flat(id)
+      select rank (a)
+      rank (1)
+        if (op == op_in) then
+          p(1:size(a)) = a
+        else
+          a = p(1:size(a))
+        end if
+      rank (2)
+        if (op == op_in) then
+          p(1:size(a)) = reshape(a, [size(a)])
+        else
+          a = reshape(p(1:size(a)), shape(a))
+        end if
+      end select
+    end subroutine real_field
+
+    !> Register, copy in or copy out one integer field whose run's array is a (rank 1).
+    subroutine int_field(name, centre, width, a, checkpointed)
+      character(len=*), intent(in) :: name
+      integer, intent(in) :: centre, width
+      integer(ip), allocatable, intent(inout) :: a(:)
+      logical, intent(in) :: checkpointed
+      integer(ip), pointer, contiguous :: p(:)
+      integer :: id
+      if (stat /= 0) return
+      if (op == op_register) then
+        if (checkpointed .or. .not. checkpoint) &
+          call reg%add(name, centre, kind_int, width, id, stat)
+        return
+      end if
+      id = reg%find(name)
+      if (id == 0 .or. .not. allocated(a)) return
+      p => reg%int_flat(id)
+      if (op == op_in) then
+        p(1:size(a)) = a
+      else
+        a = p(1:size(a))
+      end if
+    end subroutine int_field
+  end subroutine each_field
+end submodule iem_simulation_fields
