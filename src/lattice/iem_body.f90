@@ -3,7 +3,7 @@
 !> holds its centre). This type is the body's description, small on every rank: it classifies
 !> the cells of any band of grid rows on demand (classify_rows) and never holds a map of the
 !> whole grid. Cells and the nodes they use are numbered row by row (iem_body_numbering); a
-!> full rectangle (uniform) keeps the grid's numbers, which its methods give directly.
+!> full rectangle (uniform) keeps the grid's numbers.
 module iem_body
   use, intrinsic :: iso_fortran_env, only: int8
   use iem_kinds, only: wp, i8
@@ -46,11 +46,6 @@ module iem_body
   contains
     procedure :: init => body_init
     procedure :: classify_rows => body_classify_rows
-    procedure :: material => body_material
-    procedure :: cell_number => body_cell_number
-    procedure :: node_number => body_node_number
-    procedure :: node_ij => body_node_ij
-    procedure :: node_xy => body_node_xy
     procedure :: free => body_free
   end type body_t
 
@@ -189,51 +184,6 @@ contains
       end do
     end do
   end subroutine body_classify_rows
-
-  !> Material (0: void or outside the grid) of grid cell (i, j) of a full rectangle.
-  pure integer function body_material(this, i, j) result(m)
-    class(body_t), intent(in) :: this
-    integer, intent(in) :: i, j
-    m = 0
-    if (i < 0 .or. j < 0 .or. i >= this%grid%nx .or. j >= this%grid%ny) return
-    m = this%background
-  end function body_material
-
-  !> Number (0-based) of grid cell (i, j) of a full rectangle; -1 outside the grid.
-  pure integer(i8) function body_cell_number(this, i, j) result(c)
-    class(body_t), intent(in) :: this
-    integer, intent(in) :: i, j
-    c = -1
-    if (i < 0 .or. j < 0 .or. i >= this%grid%nx .or. j >= this%grid%ny) return
-    c = int(i, i8) + int(j, i8)*this%grid%nx
-  end function body_cell_number
-
-  !> Number (0-based) of grid node (i, j) of a full rectangle; -1 outside the grid.
-  pure integer(i8) function body_node_number(this, i, j) result(g)
-    class(body_t), intent(in) :: this
-    integer, intent(in) :: i, j
-    g = -1
-    if (i < 0 .or. j < 0 .or. i > this%grid%nx .or. j > this%grid%ny) return
-    g = this%grid%node_id(i, j)
-  end function body_node_number
-
-  !> Grid indices (i, j) of node g of a full rectangle.
-  pure function body_node_ij(this, g) result(ij)
-    class(body_t), intent(in) :: this
-    integer(i8), intent(in) :: g
-    integer :: ij(2)
-    ij = this%grid%node_ij(g)
-  end function body_node_ij
-
-  !> Reference coordinates of node g of a full rectangle.
-  pure function body_node_xy(this, g) result(xy)
-    class(body_t), intent(in) :: this
-    integer(i8), intent(in) :: g
-    real(wp) :: xy(2)
-    integer :: ij(2)
-    ij = this%node_ij(g)
-    xy = [ij(1)*this%grid%lx, ij(2)*this%grid%ly]
-  end function body_node_xy
 
   !> Release the description.
   subroutine body_free(this)

@@ -2,7 +2,8 @@
 !> every rank alone for a full rectangle, and weighted by the nodes that exist (iem_rcb,
 !> rcb_init_weighted over the strips of iem_body_numbering) for any other body or for given
 !> node weights; then each rank's local lattice (owned + halo nodes, the cells touching owned
-!> nodes) built from its box alone, and its halo plan. No rank holds an array over the body.
+!> nodes) built from the window around its box alone, and its halo plan. No rank holds an
+!> array over the body.
 module iem_decomposition
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Allreduce, MPI_IN_PLACE, &
                      MPI_SUM, MPI_INTEGER8
@@ -58,7 +59,12 @@ contains
     if (body%uniform .and. .not. present(weight)) then
       call bis%init(body%grid%nx + 1, body%grid%ny + 1, nranks)
       if (bis%balanced(2)) then
-        call build_local_rcb(body, bis, rank, lat, own, guard)
+        ! every row is full: left of column c0 lie c0 cells and c0 nodes
+        allocate(lc(0:bis%box(4, rank) - bis%box(3, rank) + 2), &
+                 ln(0:bis%box(4, rank) - bis%box(3, rank) + 2))
+        lc = max(bis%box(1, rank) - 1, 0)
+        ln = lc
+        call build_local_window(body, bis, rank, lc, ln, lat, own, guard, stat, msg)
         call guard%agree(comm, body%grid%label(), stat, msg)
         if (stat /= 0) return
         call build_halo(own, comm, lat, halo, w)
@@ -274,94 +280,6 @@ contains
     end do
     k = lo
   end function find_key
-
-  !> Build the local lattice of rank me of a full rectangle from its bisection box: owned
-  !> nodes the box's (ascending), the cells touching them (ascending), halo nodes the ring
-  !> around the box sorted by (owner, number); own(n_local) the owner of each local node.
-  !> Only arrays of the rank's size are allocated.
-  subroutine build_local_rcb(body, rcb, me, lat, own, guard)
-    type(body_t), intent(in) :: body
-    type(rcb_t), intent(in) :: rcb
-    integer, intent(in) :: me
-    type(local_lattice_t), intent(inout) :: lat
-    integer(ip), allocatable, intent(out) :: own(:)
-    type(alloc_guard_t), intent(inout) :: guard
-    integer(ip), allocatable :: lmap(:, :)
-    integer(i8), allocatable :: keys(:)
-    integer :: i0, i1, j0, j1, a0, a1, b0, b1, i, j, n_owned, n_halo, n_cells, k, l, q, ierr
-    integer :: ij(2)
-    integer(i8) :: nn
-    integer, parameter :: di(4) = [0, 1, 0, -1], dj(4) = [-1, 0, 1, 0]
-    integer, parameter :: ci(4) = [0, 1, 1, 0], cj(4) = [0, 0, 1, 1]
-
-    call lat%free()
-    nn = body%n_nodes
-    i0 = rcb%box(1, me)
-    i1 = rcb%box(2, me)
-    j0 = rcb%box(3, me)
-    j1 = rcb%box(4, me)
-    ! the box grown by the ring of halo nodes, within the grid; its cells
-    a0 = max(i0 - 1, 0)
-    a1 = min(i1 + 1, body%grid%nx)
-    b0 = max(j0 - 1, 0)
-    b1 = min(j1 + 1, body%grid%ny)
-    n_owned = (i1 - i0 + 1)*(j1 - j0 + 1)
-    n_halo = (a1 - a0 + 1)*(b1 - b0 + 1) - n_owned
-    n_cells = (min(i1, body%grid%nx - 1) - a0 + 1)*(min(j1, body%grid%ny - 1) - b0 + 1)
-    allocate(lmap(a0:a1, b0:b1), keys(n_halo), lat%gid(n_owned + n_halo), &
-             lat%xy(2, n_owned + n_halo), own(n_owned + n_halo), lat%cell_gid(n_cells), &
-             lat%cell_nodes(4, n_cells), lat%cell_mat(n_cells), lat%cell_open(n_cells), &
-             stat=ierr)
-    call guard%note(ierr, 'the lattice of the rank', 44.0_wp*(n_owned + n_halo) + &
-                    29.0_wp*n_cells)
-    if (guard%failed) return
-    l = 0
-    do j = j0, j1
-      do i = i0, i1
-        l = l + 1
-        lmap(i, j) = int(l, ip)
-        lat%gid(l) = body%node_number(i, j)
-        own(l) = int(me, ip)
-      end do
-    end do
-    k = 0
-    do j = b0, b1
-      do i = a0, a1
-        if (i >= i0 .and. i <= i1 .and. j >= j0 .and. j <= j1) cycle
-        k = k + 1
-        keys(k) = int(rcb%owner(i, j), i8)*nn + body%node_number(i, j)
-      end do
-    end do
-    call sort_i8(keys)
-    do k = 1, n_halo
-      l = n_owned + k
-      lat%gid(l) = mod(keys(k), nn)
-      own(l) = int(keys(k)/nn, ip)
-      ij = body%node_ij(lat%gid(l))
-      lmap(ij(1), ij(2)) = int(l, ip)
-    end do
-    lat%n_owned = n_owned
-    lat%n_local = n_owned + n_halo
-    lat%n_cells = n_cells
-    lat%mixed = .false.
-    do l = 1, lat%n_local
-      lat%xy(:, l) = body%node_xy(lat%gid(l))
-    end do
-    k = 0
-    do j = b0, min(j1, body%grid%ny - 1)
-      do i = a0, min(i1, body%grid%nx - 1)
-        k = k + 1
-        lat%cell_gid(k) = body%cell_number(i, j)
-        lat%cell_nodes(:, k) = [(lmap(i + ci(q), j + cj(q)), q = 1, 4)]
-        lat%cell_mat(k) = body%material(i, j)
-        lat%cell_open(k) = 0_int8
-        do q = 1, 4
-          if (body%material(i + di(q), j + dj(q)) == 0) &
-            lat%cell_open(k) = ibset(lat%cell_open(k), q - 1)
-        end do
-      end do
-    end do
-  end subroutine build_local_rcb
 
   !> Build the halo plan: whom we receive from (contiguous halo ranges) and what we send: an
   !> owned node goes to every rank that owns a node of one of its cells.
