@@ -269,16 +269,17 @@ contains
   subroutine report_partition(this)
     type(simulation_t), intent(in) :: this
     integer(i8) :: v(3)
-    character(len=120) :: line
+    character(len=8) :: imbalance, share
     if (this%n_ranks == 1) return
     v = [int(this%lat%n_owned, i8), int(this%lat%n_local - this%lat%n_owned, i8), 0_i8]
     v(3) = v(1)
     call MPI_Allreduce(MPI_IN_PLACE, v(1:2), 2, MPI_INTEGER8, MPI_SUM, this%comm)
     call MPI_Allreduce(MPI_IN_PLACE, v(3:3), 1, MPI_INTEGER8, MPI_MAX, this%comm)
-    write(line, '(a,i0,a,f0.3,a,i0,a,f0.4,a)') 'partition: ', this%n_ranks, &
-      ' ranks, largest/mean owned nodes ', real(v(3), wp)*this%n_ranks/real(v(1), wp), &
-      ', halo nodes ', v(2), ' (', real(v(2), wp)/real(v(1), wp), ' of the nodes)'
-    call log_info(trim(line))
+    write(imbalance, '(f8.3)') real(v(3), wp)*this%n_ranks/real(v(1), wp)
+    write(share, '(f8.1)') 100.0_wp*real(v(2), wp)/real(v(1), wp)
+    call log_info('partition: '//itoa(this%n_ranks)//' ranks, largest/mean owned nodes '// &
+                  trim(adjustl(imbalance))//', halo nodes '//itoa(v(2))//' ('// &
+                  trim(adjustl(share))//'% of the nodes)')
   end subroutine report_partition
 
   !> Log a body in several pieces ('warn': a warning; 'allow': an info line) or refuse it
