@@ -74,8 +74,6 @@ module iem_model
     procedure :: init => model_init
     procedure :: rate => model_rate
     procedure :: prescribe => model_prescribe
-    procedure :: kinetic_energy => model_kinetic_energy
-    procedure :: strain_energy => model_strain_energy
     procedure :: add_work => model_add_work
     procedure :: energy_sums => model_energy_sums
   end type model_t
@@ -469,20 +467,4 @@ contains
     sums(4) = this%w_damp_acc
   end subroutine model_energy_sums
 
-  !> Kinetic energy of the owned nodes.
-  real(wp) function model_kinetic_energy(this, y) result(e)
-    class(model_t), intent(in) :: this
-    real(wp), intent(in) :: y(:, :)
-    integer :: l
-    e = 0.0_wp
-    do l = 1, size(this%mass)
-      e = e + 0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
-    end do
-  end function model_kinetic_energy
-
-  !> Strain energy of this rank's counted cells, from the last rate evaluation.
-  real(wp) function model_strain_energy(this) result(e)
-    class(model_t), intent(in) :: this
-    e = this%energy
-  end function model_strain_energy
 end module iem_model

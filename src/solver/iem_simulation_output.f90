@@ -117,10 +117,8 @@ contains
 
     np = size(this%probe_gid)
     this%sample = 0.0_wp
-    this%sample(1) = this%model%kinetic_energy(this%st%y)
-    this%sample(2) = this%model%strain_energy()
-    this%sample(3) = this%w_ext
-    this%sample(4) = this%w_damp
+    ! the energies are exact sums (below); a static run's work is its load steps' (summed here)
+    if (this%static) this%sample(3:4) = [this%w_ext, this%w_damp]
     do p = 1, np
       if (this%probe_local(p) > 0) then
         this%sample(4 + 4*(p - 1) + 1:4 + 4*p) = this%st%y(1:4, this%probe_local(p))
