@@ -32,6 +32,7 @@ module iem_body_numbering
     !> Weight (>= 1) of the node at (x, y) in a weighted bisection.
     pure integer(i8) function node_weight(x, y)
       import :: wp, i8
+      implicit none
       real(wp), intent(in) :: x, y
     end function node_weight
   end interface
