@@ -83,13 +83,17 @@ contains
     spring = 0.0_wp
     if (mc%nonlinear) spring = springs_per_cell*(48.0_wp + 16.0_wp*mc%depth) + 8.0_wp
     per_node = per_node + spring*cells_per_node
-    ! a checkpoint (dynamic runs: at its interval or on a signal) packs the state of the owned
-    ! nodes, the ids of the counted cells and the springs' history
+    ! a checkpoint (dynamic runs: at its interval or on a signal) copies the checkpointed
+    ! fields into a registry (the state y and rates acc of every local node, the springs'
+    ! history of every local cell), packs records into a buffer (at most 16 MB: counted per
+    ! node, which is the case up to about 3e5 nodes a rank and errs high beyond) with the
+    ! runs' lengths and offsets of the file view (12 bytes a record), and lists the counted
+    ! cells' numbers
     ckpt = 0.0_wp
     if (trim(mc%integrator) /= 'static') then
-      ckpt = 8.0_wp*(2.0_wp*ns - 2.0_wp) + 8.0_wp*cells_per_node
+      ckpt = 2.0_wp*8.0_wp*(2.0_wp*ns - 2.0_wp) + 12.0_wp + 8.0_wp*cells_per_node
       if (mc%nonlinear) ckpt = ckpt + &
-        8.0_wp*springs_per_cell*(7.0_wp + 2.0_wp*mc%depth)*cells_per_node
+        2.0_wp*8.0_wp*springs_per_cell*(7.0_wp + 2.0_wp*mc%depth)*cells_per_node
     end if
     per_node = per_node + max(frame_node_bytes, ckpt)
     need%run_per_node = per_node
