@@ -215,10 +215,7 @@ contains
       call window_rows(p, r0, r1)
       scnt(p) = 2*max(0, min(strip%nb, r1) - max(strip%na, r0) + 1)
     end do
-    sdis(0) = 0
-    do p = 1, nranks - 1
-      sdis(p) = sdis(p - 1) + scnt(p - 1)
-    end do
+    sdis = offsets(scnt)
     allocate(sbuf(sum(scnt)))
     k = 0
     do p = 0, nranks - 1
@@ -239,10 +236,7 @@ contains
     do p = 0, nranks - 1
       rcnt(p) = 2*max(0, min(last_node_row(p), r1) - max(first_row(p), r0) + 1)
     end do
-    rdis(0) = 0
-    do p = 1, nranks - 1
-      rdis(p) = rdis(p - 1) + rcnt(p - 1)
-    end do
+    rdis = offsets(rcnt)
     allocate(rbuf(sum(rcnt)))
     call MPI_Alltoallv(sbuf, scnt, sdis, MPI_INTEGER8, rbuf, rcnt, rdis, MPI_INTEGER8, comm)
     allocate(lc(r0:r1), ln(r0:r1))
@@ -252,6 +246,16 @@ contains
     end do
 
   contains
+
+    !> Offsets of consecutive blocks of counts cnt(0:), the first at 0.
+    pure function offsets(cnt) result(off)
+      integer, intent(in) :: cnt(0:)
+      integer :: off(0:size(cnt) - 1), q
+      off(0) = 0
+      do q = 1, size(cnt) - 1
+        off(q) = off(q - 1) + cnt(q - 1)
+      end do
+    end function offsets
 
     subroutine window_rows(q, a, b)
       integer, intent(in) :: q
