@@ -35,10 +35,12 @@ module iem_image
   !> (column i, row j) of the file whichever band was read. A whole image has first_row = 1,
   !> last_row = height; an empty band has last_row = first_row - 1 and pix of shape (width, 0)
   !> (whose lbound is then 1, as for any zero-size dimension). Values 0..maxval; for
-  !> PBM (P1, P4) maxval is 1 and 1 is black, as in the format.
+  !> PBM (P1, P4) maxval is 1 and 1 is black, as in the format. A band may also be narrowed
+  !> to columns first_col..last_col (pix(first_col:last_col, first_row:last_row); all
+  !> columns by default).
   type :: image_t
     integer :: width = 0, height = 0, maxval = 0
-    integer :: first_row = 1, last_row = 0
+    integer :: first_row = 1, last_row = 0, first_col = 1, last_col = 0
     integer, allocatable :: pix(:, :)
   end type image_t
 
@@ -56,16 +58,19 @@ contains
 
   !> Read rows first_row..last_row (1 = top) of the image file path, clipped to 1..height (an
   !> empty band allowed), into img%pix(:, img%first_row:img%last_row), checking what the
-  !> module's header says; stat /= 0 with msg (naming the file) and no pix on failure.
-  subroutine read_image_rows(path, first_row, last_row, img, stat, msg)
+  !> module's header says; with first_col, last_col only those columns (clipped to
+  !> 1..width) are kept (a binary file's other columns are not read). stat /= 0 with msg
+  !> (naming the file) and no pix on failure.
+  subroutine read_image_rows(path, first_row, last_row, img, stat, msg, first_col, last_col)
     character(len=*), intent(in) :: path
     integer, intent(in) :: first_row, last_row
     type(image_t), intent(out) :: img
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
+    integer, intent(in), optional :: first_col, last_col
     type(image_bytes_t) :: src
     character(len=256) :: iom
-    integer :: unit, ios
+    integer :: unit, ios, c0, c1
     integer(i8) :: n
     stat = 1
     open(newunit=unit, file=path, access='stream', form='unformatted', status='old', &
@@ -81,7 +86,11 @@ contains
       return
     end if
     call src%attach_file(unit, n)
-    call decode(src, first_row, last_row, img, stat, msg)
+    c0 = 1
+    c1 = huge(1)
+    if (present(first_col)) c0 = first_col
+    if (present(last_col)) c1 = last_col
+    call decode(src, first_row, last_row, img, stat, msg, c0, c1)
     close(unit)
     if (src%ios /= 0) then
       stat = 1
@@ -101,19 +110,19 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     type(image_bytes_t) :: src
     call src%attach_string(bytes)
-    call decode(src, 1, huge(1), img, stat, msg)
+    call decode(src, 1, huge(1), img, stat, msg, 1, huge(1))
   end subroutine parse_image
 
-  !> Decode rows first_row..last_row of the PBM or PGM file served by src (as the module's
-  !> header says); stat /= 0 with msg on anything malformed.
-  subroutine decode(src, first_row, last_row, img, stat, msg)
+  !> Decode rows first_row..last_row, columns first_col..last_col of the PBM or PGM file
+  !> served by src (as the module's header says); stat /= 0 with msg on anything malformed.
+  subroutine decode(src, first_row, last_row, img, stat, msg, first_col, last_col)
     type(image_bytes_t), intent(inout) :: src
-    integer, intent(in) :: first_row, last_row
+    integer, intent(in) :: first_row, last_row, first_col, last_col
     type(image_t), intent(out) :: img
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer(i8) :: pos, row_bytes, need, p
-    integer :: kind, v, i, j, ierr, f, l
+    integer :: kind, v, i, j, ierr, f, l, c0, c1
     logical :: bits
     character(len=2) :: magic
     stat = 1
@@ -160,9 +169,14 @@ contains
     if (l < f) l = f - 1
     img%first_row = f
     img%last_row = l
-    allocate(img%pix(img%width, f:l), stat=ierr)
+    c0 = max(first_col, 1)
+    c1 = min(last_col, img%width)
+    if (c1 < c0) c1 = c0 - 1
+    img%first_col = c0
+    img%last_col = c1
+    allocate(img%pix(c0:c1, f:l), stat=ierr)
     if (ierr /= 0) then
-      msg = 'out of memory for '//itoa(img%width)//' x '//itoa(l - f + 1)//' pixels'
+      msg = 'out of memory for '//itoa(c1 - c0 + 1)//' x '//itoa(l - f + 1)//' pixels'
       return
     end if
     select case (kind)
@@ -191,7 +205,7 @@ contains
               return
             end if
           end if
-          if (j >= f) img%pix(i, j) = v
+          if (j >= f .and. i >= c0 .and. i <= c1) img%pix(i, j) = v
         end do
       end do rows
       if (j <= l) then
@@ -222,7 +236,7 @@ contains
       ! only the band's bytes are read: the buffer starts at the band's first byte
       do j = f, l
         p = pos + (j - 1)*row_bytes
-        do i = 1, img%width
+        do i = c0, c1
           if (kind == 4) then
             v = iachar(byte(p + (i - 1)/8))
             v = merge(1, 0, btest(v, 7 - mod(i - 1, 8)))

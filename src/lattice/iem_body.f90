@@ -113,7 +113,8 @@ contains
   !> grid: mat(i0:i1, j0:j1), src(i0:i1, j0:j1). hits(k) counts the cells of rows h0..h1
   !> whose centre shape k holds; cells(m) the cells of material m in those rows. stat /= 0
   !> with msg (naming &geometry image) for an unreadable, mis-sized or unmatched image; the
-  !> image's rows are read only for the band (see iem_image, read_image_rows).
+  !> image's pixels are read only for the band's rows and columns (iem_image,
+  !> read_image_rows).
   subroutine body_classify_rows(this, i0, i1, j0, j1, h0, h1, mat, src, hits, cells, stat, msg)
     class(body_t), intent(in) :: this
     integer, intent(in) :: i0, i1, j0, j1, h0, h1
@@ -133,7 +134,8 @@ contains
     ny = this%grid%ny
     ! the image's rows for the band: pixel (column c, row r) is cell (c - 1, ny - r)
     if (len(this%image) > 0 .and. max(j0, 0) <= min(j1, ny - 1)) then
-      call read_image_rows(this%image, ny - min(j1, ny - 1), ny - max(j0, 0), img, stat, msg)
+      call read_image_rows(this%image, ny - min(j1, ny - 1), ny - max(j0, 0), img, stat, msg, &
+                           max(i0, 0) + 1, min(i1, nx - 1) + 1)
       if (stat /= 0) then
         ! the reader names the file itself: keep only the reason
         if (index(msg, "image '"//this%image//"': ") == 1) msg = msg(len(this%image) + 11:)
