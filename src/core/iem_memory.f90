@@ -45,16 +45,16 @@ module iem_memory
     integer :: depth = 8
   end type memory_case_t
 
-  !> Estimated peak bytes of one rank, in the set-up (decomposition; METIS on rank 0) and in
-  !> the run (lattice, model, state, nonlinear springs, output and checkpoint buffers).
+  !> Estimated peak bytes of each rank (every rank holds its share only), in the set-up
+  !> (decomposition) and in the run (lattice, model, state, nonlinear springs, output and
+  !> checkpoint buffers).
   type :: memory_need_t
-    real(wp) :: setup_root = 0.0_wp, setup_other = 0.0_wp, run = 0.0_wp
+    real(wp) :: setup = 0.0_wp, run = 0.0_wp
     !> Bytes per node of the rank's share, in the set-up and in the run.
-    real(wp) :: setup_root_per_node = 0.0_wp, run_per_node = 0.0_wp
+    real(wp) :: setup_per_node = 0.0_wp, run_per_node = 0.0_wp
   contains
-    procedure :: root => memory_need_root
-    procedure :: other => memory_need_other
-    procedure :: root_what => memory_need_root_what
+    procedure :: peak => memory_need_peak
+    procedure :: what => memory_need_what
   end type memory_need_t
 
 contains
@@ -102,34 +102,26 @@ contains
     ! its strip and window; no array over the whole body on any rank
     decomp = (lattice_node_bytes + decomp_node_bytes + (lattice_cell_bytes + &
               decomp_cell_bytes)*cells_per_node)*n
-    need%setup_other = decomp
-    need%setup_root = decomp
-    need%setup_root_per_node = decomp/max(n, 1.0_wp)
+    need%setup = decomp
+    need%setup_per_node = decomp/max(n, 1.0_wp)
   end function memory_estimate
 
-  !> Peak bytes of rank 0.
-  pure real(wp) function memory_need_root(this) result(b)
+  !> Peak bytes of a rank.
+  pure real(wp) function memory_need_peak(this) result(b)
     class(memory_need_t), intent(in) :: this
-    b = max(this%setup_root, this%run)
-  end function memory_need_root
+    b = max(this%setup, this%run)
+  end function memory_need_peak
 
-  !> Peak bytes of each other rank.
-  pure real(wp) function memory_need_other(this) result(b)
+  !> What makes a rank's peak, with its bytes per node, for messages.
+  function memory_need_what(this) result(s)
     class(memory_need_t), intent(in) :: this
-    b = max(this%setup_other, this%run)
-  end function memory_need_other
-
-  !> What makes rank 0's peak, with its bytes per node, for messages.
-  function memory_need_root_what(this, n_ranks) result(s)
-    class(memory_need_t), intent(in) :: this
-    integer, intent(in) :: n_ranks
     character(len=:), allocatable :: s
-    if (this%setup_root > this%run .and. n_ranks > 0) then
-      s = 'set-up of the lattice, '//bytes_text(this%setup_root_per_node)//'/node of its share'
+    if (this%setup > this%run) then
+      s = 'set-up of the lattice, '//bytes_text(this%setup_per_node)//'/node of its share'
     else
-      s = 'lattice, state and buffers, '//bytes_text(this%run_per_node)//'/node'
+      s = 'lattice, state and buffers, '//bytes_text(this%run_per_node)//'/node of its share'
     end if
-  end function memory_need_root_what
+  end function memory_need_what
 
   !> Bytes this node can still give: MemAvailable of /proc/meminfo, capped by the headroom of
   !> this process's memory cgroup and of every cgroup above it (v2 memory.max, v1
@@ -265,7 +257,7 @@ contains
     character(len=:), allocatable, intent(out) :: msg, info
     type(MPI_Comm) :: node
     integer :: rank, n_ranks, node_rank, node_size
-    real(wp) :: sums(2), node_need, avail, worst(2), facts(3)
+    real(wp) :: node_need, avail, worst(2), facts(3)
     character(len=:), allocatable :: where
 
     stat = 0
@@ -274,9 +266,8 @@ contains
     call MPI_Comm_size(comm, n_ranks)
     call MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, rank, MPI_INFO_NULL, node)
     call MPI_Comm_rank(node, node_rank)
-    sums = [merge(need%setup_root, need%setup_other, rank == 0), need%run]
-    call MPI_Allreduce(MPI_IN_PLACE, sums, 2, mpi_wp(), MPI_SUM, node)
-    node_need = maxval(sums)
+    node_need = need%peak()
+    call MPI_Allreduce(MPI_IN_PLACE, node_need, 1, mpi_wp(), MPI_SUM, node)
     avail = -1.0_wp
     if (node_rank == 0) avail = node_available_bytes()
     call MPI_Bcast(avail, 1, mpi_wp(), 0, node)
@@ -285,9 +276,8 @@ contains
     facts = [avail, real(node_size, wp), merge(1.0_wp, 0.0_wp, rank == 0)]
     call MPI_Allreduce(MPI_IN_PLACE, facts(3), 1, mpi_wp(), MPI_SUM, node)
     call MPI_Comm_free(node)
-    info = 'memory: about '//bytes_text(need%root())//' needed on rank 0'
-    if (n_ranks > 1) info = info//' ('//need%root_what(n_ranks)//'), '// &
-      bytes_text(need%other())//' on each other rank'
+    info = 'memory: about '//bytes_text(need%peak())//' needed on each of the '// &
+           itoa(n_ranks)//' rank(s) ('//need%what()//')'
     if (avail >= 0.0_wp) then
       info = info//'; '//bytes_text(avail)//' available on this node for its '// &
              itoa(nint(facts(2)))//' rank(s)'
@@ -303,14 +293,10 @@ contains
     call MPI_Bcast(facts, 3, mpi_wp(), int(worst(2)), comm)
     stat = 1
     if (n_ranks == 1) then
-      msg = label//' needs about '//bytes_text(need%root())//' ('//need%root_what(1)//')'
-    else if (facts(3) > 0.0_wp .and. need%root() > need%other()) then
-      msg = label//' needs about '//bytes_text(need%root())//' on rank 0 ('// &
-            need%root_what(n_ranks)//') and '//bytes_text(need%other())//' on each other rank'
+      msg = label//' needs about '//bytes_text(need%peak())//' ('//need%what()//')'
     else
-      msg = label//' needs about '//bytes_text(need%other())//' on each of the '// &
-            itoa(n_ranks)//' ranks (lattice, state and buffers, '// &
-            bytes_text(need%run_per_node)//'/node of its share)'
+      msg = label//' needs about '//bytes_text(need%peak())//' on each of the '// &
+            itoa(n_ranks)//' ranks ('//need%what()//')'
     end if
     where = 'a node'
     if (facts(3) > 0.0_wp) where = 'this node'

@@ -36,7 +36,7 @@ UNITS = {"B": 1.0, "KiB": 2.0**10, "MiB": 2.0**20, "GiB": 2.0**30, "TiB": 2.0**4
 
 
 def run(args, folder: Path, ny: int, ranks: int, integrator: str) -> tuple[float, float]:
-    """Estimated bytes of rank 0 and measured peak bytes (largest rank) of one run."""
+    """Estimated bytes of a rank and measured peak bytes (largest rank) of one run."""
     t_end = 4 * 1.6e-4 / ny
     (folder / "m.nml").write_text(CASE.format(t_end=t_end, t_chk=t_end / 2, nx=2 * ny, ny=ny,
                                               integrator=integrator))
@@ -46,7 +46,7 @@ def run(args, folder: Path, ny: int, ranks: int, integrator: str) -> tuple[float
                        env=dict(os.environ))
     if p.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed ({p.returncode}):\n{p.stdout[-2000:]}{p.stderr[-2000:]}")
-    est = re.search(r"memory: about ([\d.e+]+) (\w+) needed on rank 0", p.stdout)
+    est = re.search(r"memory: about ([\d.e+]+) (\w+) needed on each of", p.stdout)
     peak = re.search(r"memory: peak ([\d.]+) MB per rank \(largest\)", p.stdout)
     if not est or not peak:
         sys.exit(f"no memory lines in the output of {' '.join(cmd)}:\n{p.stdout[-2000:]}")
