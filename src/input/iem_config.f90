@@ -77,6 +77,9 @@ module iem_config
     real(wp), allocatable :: points(:, :)
     character(len=name_len) :: material = ''
     integer :: material_id = 0
+    !> material = 'crack': the shape pre-cuts the cells whose centre it holds (every spring
+    !> failed at the start) and leaves their material as it is.
+    logical :: crack = .false.
   end type shape_config_t
 
   !> One material (&material, repeatable with distinct names): linear elastic, optionally
@@ -92,6 +95,15 @@ module iem_config
     real(wp) :: tensile_strength = 0.0_wp, compressive_strength = 0.0_wp
     real(wp) :: shear_strength = 0.0_wp
     integer :: history_depth = 8
+    !> Fracture (docs/model.md, "Fracture"): springs that soften and fail. Each criterion
+    !> (tension and crushing of edge springs, shear of shear springs) is on when its strength
+    !> (the three above) or its limit strain is given, with its fracture energy (J/m^2);
+    !> 0: not given.
+    logical :: fracture = .false.
+    real(wp) :: tensile_failure_strain = 0.0_wp, compressive_failure_strain = 0.0_wp
+    real(wp) :: shear_failure_strain = 0.0_wp
+    real(wp) :: fracture_energy = 0.0_wp, crushing_energy = 0.0_wp
+    real(wp) :: shear_fracture_energy = 0.0_wp
   end type material_config_t
 
   !> A set of nodes of the body (docs/input.md, Node sets): where = 'left', 'right', 'bottom',

@@ -7,6 +7,7 @@ module iem_input_body
   use iem_namelist_text, only: nml_text_t, line_len
   use iem_input_checks, only: bad, given
   use iem_input_table, only: key_t, key, key_only, read_group, check_literals, check_values
+  use iem_input_fracture, only: check_fracture_keys
   implicit none
   private
   public :: read_geometry, read_material, read_damping, max_levels
@@ -203,14 +204,22 @@ contains
     character(len=256), intent(out) :: iomsg
     character(len=name_len) :: name
     real(wp) :: e, nu, density, tensile_strength, compressive_strength, shear_strength
-    logical :: nonlinear
+    real(wp) :: tensile_failure_strain, compressive_failure_strain, shear_failure_strain
+    real(wp) :: fracture_energy, crushing_energy, shear_fracture_energy
+    logical :: nonlinear, fracture
     integer :: history_depth
     namelist /material/ name, e, nu, density, nonlinear, tensile_strength, &
-      compressive_strength, shear_strength, history_depth
+      compressive_strength, shear_strength, history_depth, fracture, tensile_failure_strain, &
+      compressive_failure_strain, shear_failure_strain, fracture_energy, crushing_energy, &
+      shear_fracture_energy
     name = ''; e = unset_real; nu = unset_real; density = unset_real
     nonlinear = mat%nonlinear; history_depth = mat%history_depth
+    fracture = mat%fracture
     tensile_strength = unset_real; compressive_strength = unset_real
     shear_strength = unset_real
+    tensile_failure_strain = unset_real; compressive_failure_strain = unset_real
+    shear_failure_strain = unset_real
+    fracture_energy = unset_real; crushing_energy = unset_real; shear_fracture_energy = unset_real
     iomsg = ''
     read(chunk, nml=material, iostat=ios, iomsg=iomsg)
     mat%name = name
@@ -219,6 +228,13 @@ contains
     mat%tensile_strength = tensile_strength
     mat%compressive_strength = compressive_strength
     mat%shear_strength = shear_strength
+    mat%fracture = fracture
+    mat%tensile_failure_strain = tensile_failure_strain
+    mat%compressive_failure_strain = compressive_failure_strain
+    mat%shear_failure_strain = shear_failure_strain
+    mat%fracture_energy = fracture_energy
+    mat%crushing_energy = crushing_energy
+    mat%shear_fracture_energy = shear_fracture_energy
   end subroutine parse_material
 
   !> Check, parse and validate group g (one &material, called label in messages) into mat;
@@ -233,7 +249,7 @@ contains
     character(len=line_len), allocatable :: chunk(:)
     character(len=256) :: iomsg
     character(len=*), parameter :: with = ' with nonlinear = .true. [Pa]'
-    type(key_t) :: keys(9)
+    type(key_t) :: keys(16)
     keys = [key('name', mat%name), key('e', mat%young, need=": Young's modulus [Pa]", &
                                        range='> 0', unit=' [Pa]', shown='E'), &
       key('nu', mat%poisson, need=": Poisson's ratio", range='(-1, 0.5)'), &
@@ -244,7 +260,14 @@ contains
           unit=' [Pa]'), &
       key('shear_strength', mat%shear_strength, need=with, range='> 0', unit=' [Pa]'), &
       key('history_depth', mat%history_depth, range='>= 2', &
-          unit=' (reversal points kept per spring)')]
+          unit=' (reversal points kept per spring)'), &
+      key('fracture', mat%fracture), &
+      key('tensile_failure_strain', mat%tensile_failure_strain), &
+      key('compressive_failure_strain', mat%compressive_failure_strain), &
+      key('shear_failure_strain', mat%shear_failure_strain), &
+      key('fracture_energy', mat%fracture_energy), &
+      key('crushing_energy', mat%crushing_energy), &
+      key('shear_fracture_energy', mat%shear_fracture_energy)]
     call read_group(text, g, keys, label, try_material, chunk, stat, msg)
     if (stat /= 0) return
     call parse_material(chunk, mat, stat, iomsg)
@@ -254,17 +277,20 @@ contains
     if (mat%nonlinear) then
       call check_values(keys, 'tensile_strength compressive_strength shear_strength '// &
                         'history_depth', label, stat, msg)
-    ! strengths without nonlinear = .true. would be silently ignored
+    ! strengths without nonlinear = .true. or fracture = .true. would be silently ignored
+    else if (mat%fracture) then
+      continue
     else if (mat%tensile_strength /= unset_real) then
       call bad(label, 'tensile_strength', rtoa(mat%tensile_strength), &
-               'is used only with nonlinear = .true.', stat, msg)
+               'is used only with nonlinear = .true. or fracture = .true.', stat, msg)
     else if (mat%compressive_strength /= unset_real) then
       call bad(label, 'compressive_strength', rtoa(mat%compressive_strength), &
-               'is used only with nonlinear = .true.', stat, msg)
+               'is used only with nonlinear = .true. or fracture = .true.', stat, msg)
     else if (mat%shear_strength /= unset_real) then
       call bad(label, 'shear_strength', rtoa(mat%shear_strength), &
-               'is used only with nonlinear = .true.', stat, msg)
+               'is used only with nonlinear = .true. or fracture = .true.', stat, msg)
     end if
+    if (stat == 0) call check_fracture_keys(mat, label, stat, msg)
   end subroutine read_material
 
   integer function try_material(part, iomsg) result(ios)

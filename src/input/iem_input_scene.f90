@@ -76,9 +76,11 @@ contains
                      'own name', stat, msg)
             return
           end if
-        else if (lower(trim(name)) == 'void' .or. lower(trim(name)) == 'default') then
+        else if (lower(trim(name)) == 'void' .or. lower(trim(name)) == 'default' .or. &
+                 lower(trim(name)) == 'crack') then
           call bad(label, 'name', "'"//trim(name)//"'", "is reserved ('void' means no "// &
-                   "material, 'default' the one unnamed material)", stat, msg)
+                   "material, 'default' the one unnamed material, 'crack' a pre-cut shape)", &
+                   stat, msg)
           return
         else if (.not. valid_name(name)) then
           call bad(label, 'name', "'"//trim(name)//"'", 'may hold only letters, digits, '// &
@@ -139,7 +141,9 @@ contains
     do k = 1, size(cfg%shapes)
       label = trim(shape_labels(k))
       associate(sh => cfg%shapes(k))
-        sh%material_id = material_index(cfg, sh%material)
+        sh%crack = lower(trim(sh%material)) == 'crack'
+        sh%material_id = 0
+        if (.not. sh%crack) sh%material_id = material_index(cfg, sh%material)
         if (sh%material_id < 0) then
           call unknown(label, 'material', sh%material)
           return

@@ -22,12 +22,12 @@ module iem_input_table
 
   !> One variable of a namelist group.
   type :: key_t
-    character(len=20) :: name = ''
+    character(len=32) :: name = ''
     !> 'r' real, 'i' integer, 'l' logical, 's' string (quoted, at most len characters)
     character :: type = 'r'
     integer :: len = 0
     !> The name the value checks use in messages (as the documentation writes it).
-    character(len=20) :: shown = ''
+    character(len=32) :: shown = ''
     !> check_values refuses the variable unset; the message adds need: 'is required'//need.
     logical :: required = .false.
     character(len=text_len) :: need = ''

@@ -46,7 +46,7 @@ module iem_checkpoint_header
   integer(i8), parameter :: checkpoint_magic = 4915430829614186819_i8
   !> The format this iem writes and reads (1: before the checksum; 3: records per array,
   !> before the field registry).
-  integer(i8), parameter :: checkpoint_version = 4
+  integer(i8), parameter :: checkpoint_version = 5
   !> Words of each rank's energy slot: the packed external-work and damping accumulators.
   integer, parameter, public :: energy_words = 2*exact_sum_packed_size
   !> Bytes of the header (the records start after it and the energy slots) and the number
@@ -77,7 +77,7 @@ module iem_checkpoint_header
     !> The last history sample in the output when the checkpoint was written: time and the
     !> five energies (kinetic, strain, external work, damping, balance error), to recognise
     !> that output on a restart; the time of its last frame.
-    real(wp) :: last_sample(6) = 0.0_wp, last_frame_time = 0.0_wp
+    real(wp) :: last_sample(7) = 0.0_wp, last_frame_time = 0.0_wp
   end type checkpoint_header_t
 
 contains
@@ -214,7 +214,7 @@ contains
     end if
     h%t = reals(1); h%dt = reals(2); h%e0 = reals(3); h%e_scale = reals(4)
     h%last_balance = reals(5); h%w_ext = reals(6); h%w_damp = reals(7)
-    h%last_sample = reals(8:13); h%last_frame_time = reals(14)
+    h%last_sample = reals(8:14); h%last_frame_time = reals(15)
     stat = 1
     if (h%version /= checkpoint_version) then
       msg = 'is an iem checkpoint of format version '//itoa(h%version)//'; this iem reads '// &
@@ -319,7 +319,7 @@ contains
     type(checkpoint_header_t), intent(in) :: h
     real(wp) :: v(n_header)
     v = 0.0_wp
-    v(1:14) = [h%t, h%dt, h%e0, h%e_scale, h%last_balance, h%w_ext, h%w_damp, h%last_sample, &
+    v(1:15) = [h%t, h%dt, h%e0, h%e_scale, h%last_balance, h%w_ext, h%w_damp, h%last_sample, &
                h%last_frame_time]
   end function header_reals
 

@@ -6,6 +6,7 @@ module iem_h5_inspect
     H5F_ACC_RDONLY_F, h5dopen_f, h5dclose_f, h5dget_space_f, h5dread_f, &
     h5sget_simple_extent_dims_f, h5sselect_hyperslab_f, h5screate_simple_f, h5sclose_f, &
     H5S_SELECT_SET_F, H5T_NATIVE_DOUBLE
+  use iem_h5_layout, only: n_energies, energy_names
   implicit none
   private
   public :: h5_output_inspect
@@ -14,22 +15,19 @@ contains
 
   !> Opens path read-only on this rank alone (HDF5's error printing off) and returns how many
   !> frames and history samples it holds, the time of frame n_frames and history sample
-  !> n_samples (time and the five energies) when it holds them; stat /= 0 with msg when it is
+  !> n_samples (time and the energies of iem_h5_layout) when it holds them; stat /= 0 with msg when it is
   !> not a readable iem output.
   subroutine h5_output_inspect(path, n_frames, n_samples, have_frames, have_samples, &
       frame_time, sample, stat, msg)
     character(len=*), intent(in) :: path
     integer(i8), intent(in) :: n_frames, n_samples
     integer(i8), intent(out) :: have_frames, have_samples
-    real(wp), intent(out) :: frame_time, sample(6)
+    real(wp), intent(out) :: frame_time, sample(n_energies + 1)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer(HID_T) :: file
     integer :: ierr
     logical :: ok
-    character(len=*), parameter :: energy_path(5) = [character(len=28) :: &
-      'history/energy/kinetic', 'history/energy/strain', 'history/energy/external_work', &
-      'history/energy/damping', 'history/energy/balance_error']
     integer :: k
 
     stat = 0
@@ -55,8 +53,9 @@ contains
     ok = .true.
     call read_at('frames/time', n_frames, have_frames, frame_time)
     call read_at('history/time', n_samples, have_samples, sample(1))
-    do k = 1, 5
-      call read_at(trim(energy_path(k)), n_samples, have_samples, sample(1 + k))
+    do k = 1, n_energies
+      call read_at('history/energy/'//trim(energy_names(k)), n_samples, have_samples, &
+                   sample(1 + k))
     end do
     call h5fclose_f(file, ierr)
     call h5eset_auto_f(1, ierr)

@@ -6,9 +6,9 @@ module iem_h5_layout
   public :: n_energies, energy_names, n_static, static_names
 
   !> The energy series, in /history/energy.
-  integer, parameter :: n_energies = 5
+  integer, parameter :: n_energies = 6
   character(len=*), parameter :: energy_names(n_energies) = [character(len=13) :: &
-    'kinetic', 'strain', 'external_work', 'damping', 'balance_error']
+    'kinetic', 'strain', 'external_work', 'damping', 'fracture', 'balance_error']
   !> Per-sample series of a static run, in /history/static (docs/output.md).
   integer, parameter :: n_static = 3
   character(len=*), parameter :: static_names(n_static) = [character(len=11) :: &

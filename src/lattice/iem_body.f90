@@ -26,6 +26,9 @@ module iem_body
     !> Material of the grid before the image and the shapes (0: void).
     integer :: background = 1
     type(shape_t), allocatable :: shapes(:)
+    !> The crack shapes (material = 'crack'), in file order; their places in shapes hold a
+    !> shape that contains nothing, so that shape numbers stay those of the file.
+    type(shape_t), allocatable :: cracks(:)
     !> Cell map image ('' none), its grey levels and the material of each (0: void).
     character(len=:), allocatable :: image
     integer, allocatable :: image_levels(:), image_ids(:)
@@ -60,7 +63,7 @@ contains
     type(grid_t), intent(in) :: grid
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer :: k
+    integer :: k, n
 
     call this%free()
     stat = 0
@@ -68,7 +71,8 @@ contains
     this%grid = grid
     this%n_materials = size(cfg%materials)
     this%background = cfg%geometry%background_id
-    allocate(this%shapes(size(cfg%shapes)))
+    allocate(this%shapes(size(cfg%shapes)), this%cracks(count(cfg%shapes(:)%crack)))
+    n = 0
     do k = 1, size(cfg%shapes)
       associate(s => cfg%shapes(k))
         select case (trim(s%kind))
@@ -79,6 +83,11 @@ contains
         case default
           this%shapes(k) = shape_polygon(s%points, s%material_id)
         end select
+        if (s%crack) then
+          n = n + 1
+          this%cracks(n) = this%shapes(k)
+          this%shapes(k) = shape_t()
+        end if
       end associate
     end do
     this%image = trim(cfg%geometry%image)
@@ -86,7 +95,7 @@ contains
       this%image_levels = cfg%geometry%image_levels
       this%image_ids = cfg%geometry%image_material_ids
     end if
-    this%uniform = size(this%shapes) == 0 .and. len(this%image) == 0
+    this%uniform = size(this%shapes) == size(this%cracks) .and. len(this%image) == 0
     allocate(this%material_cells(this%n_materials))
     this%material_cells = 0
     if (this%uniform) then
@@ -191,6 +200,7 @@ contains
   subroutine body_free(this)
     class(body_t), intent(inout) :: this
     if (allocated(this%shapes)) deallocate(this%shapes)
+    if (allocated(this%cracks)) deallocate(this%cracks)
     if (allocated(this%material_cells)) deallocate(this%material_cells)
     if (allocated(this%image_levels)) deallocate(this%image_levels)
     if (allocated(this%image_ids)) deallocate(this%image_ids)

@@ -16,6 +16,9 @@ module iem_model
   use iem_stable_dt, only: capped_beta
   use iem_alloc_guard, only: alloc_guard_t
   use iem_exact_sum, only: exact_sum_t
+  use iem_fracture, only: fracture_t
+  use iem_fracture_law, only: fracture_law_t
+  use iem_input_fracture, only: material_fracture_law
   implicit none
   private
   public :: model_t
@@ -39,6 +42,10 @@ module iem_model
     !> Nonlinear (Masing) springs: their laws and history; not allocated for elastic runs.
     logical :: nonlinear = .false.
     type(nonlinear_springs_t) :: nl
+    !> Fracture (springs that soften and fail): its state; not allocated when no material
+    !> can fracture and no shape pre-cuts cells.
+    logical :: fracture = .false.
+    type(fracture_t) :: fr
     !> Lumped mass of owned nodes.
     real(wp), allocatable :: mass(:)
     !> Prescribed degrees of freedom: owned node, component, bc index.
@@ -98,6 +105,9 @@ contains
     real(wp) :: er_pos(3), er_neg(3)
     real(wp), parameter :: elastic_er = 1.0e300_wp
     type(alloc_guard_t) :: g
+    type(fracture_law_t), allocatable :: laws(:)
+    real(wp), allocatable :: centres(:, :)
+    logical :: ok
 
     this%grid = body%grid
     nm = size(cfg%materials)
@@ -149,6 +159,29 @@ contains
           end if
         end associate
       end do
+    end if
+    ! fracture: the laws of the materials (checked against the cells when the input was read)
+    this%fracture = any(cfg%materials(:)%fracture) .or. size(body%cracks) > 0
+    if (this%fracture) then
+      allocate(laws(nm))
+      do mt = 1, nm
+        call material_fracture_law(cfg%materials(mt), cfg%geometry%plane == 'strain', &
+                                   body%grid%lx, body%grid%ly, laws(mt), ok, q)
+      end do
+      call this%fr%init(laws, lat%n_cells, g)
+      if (g%failed) then
+        call g%pass(guard)
+        return
+      end if
+      if (size(body%cracks) > 0) then
+        allocate(centres(2, lat%n_cells))
+        do c = 1, lat%n_cells
+          centres(:, c) = 0.25_wp*(lat%xy(:, lat%cell_nodes(1, c)) + &
+                          lat%xy(:, lat%cell_nodes(2, c)) + lat%xy(:, lat%cell_nodes(3, c)) + &
+                          lat%xy(:, lat%cell_nodes(4, c)))
+        end do
+        call this%fr%precut(body%cracks, centres)
+      end if
     end if
     allocate(this%mass(lat%n_owned), cnt(nm, lat%n_owned), this%f(2, lat%n_local), &
              taken(2, lat%n_owned), mask(lat%n_owned), weight(lat%n_owned), stat=ierr)
@@ -356,6 +389,20 @@ contains
                          this%energy, p_damp, this%n_state - 1, this%nl, accept, &
                          cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell)
       end if
+    else if (this%fracture) then
+      accept = .false.
+      if (present(commit)) accept = commit
+      if (this%mixed) then
+        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                         this%energy, p_damp, this%n_state - 1, commit=accept, ks=this%ks, &
+                         cell_mat=lat%cell_mat, cell_energy=this%en_cell(1:ne), &
+                         cell_power=this%pw_cell, fr=this%fr, time=t)
+      else
+        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                         this%energy, p_damp, this%n_state - 1, commit=accept, &
+                         cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, fr=this%fr, &
+                         time=t)
+      end if
     else if (this%mixed) then
       call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
                        this%energy, p_damp, this%n_state - 1, ks=this%ks, cell_mat=lat%cell_mat, &
@@ -449,13 +496,14 @@ contains
   end subroutine model_add_work
 
   !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of
-  !> the last rate evaluation (counted cells), the external work and the damping dissipation,
-  !> in sums(1:4), for an exact global sum (exact_sum_allreduce).
+  !> the last rate evaluation (counted cells), the external work, the damping dissipation
+  !> and the fracture dissipation (counted cells), in sums(1:5), for an exact global sum
+  !> (exact_sum_allreduce).
   subroutine model_energy_sums(this, lat, y, sums)
     class(model_t), intent(in) :: this
     type(local_lattice_t), intent(in) :: lat
     real(wp), intent(in) :: y(:, :)
-    type(exact_sum_t), intent(out) :: sums(4)
+    type(exact_sum_t), intent(out) :: sums(5)
     integer :: l, c
     do l = 1, lat%n_owned
       call sums(1)%add(0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2))
@@ -465,6 +513,11 @@ contains
     end do
     sums(3) = this%w_ext_acc
     sums(4) = this%w_damp_acc
+    if (this%fracture) then
+      do c = 1, lat%n_cells
+        if (lat%cell_nodes(1, c) <= lat%n_owned) call sums(5)%add(this%fr%diss(c))
+      end do
+    end if
   end subroutine model_energy_sums
 
 end module iem_model

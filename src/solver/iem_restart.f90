@@ -59,10 +59,10 @@ contains
     have = 0
     tail = 0.0_wp
     if (this%rank == 0) call h5_output_inspect(out, this%restart%n_frames, &
-      this%restart%n_samples, have(1), have(2), tail(1), tail(2:7), stat, why)
+      this%restart%n_samples, have(1), have(2), tail(1), tail(2:8), stat, why)
     call MPI_Bcast(stat, 1, MPI_INTEGER, 0, this%comm)
     call MPI_Bcast(have, 2, MPI_INTEGER8, 0, this%comm)
-    call MPI_Bcast(tail, 7, mpi_wp(), 0, this%comm)
+    call MPI_Bcast(tail, 8, mpi_wp(), 0, this%comm)
     what = ''
     if (stat /= 0) then
       what = "output_file = '"//out//"' "//why
@@ -72,7 +72,7 @@ contains
              'the checkpoint needs '//itoa(this%restart%n_frames)//' and '// &
              itoa(this%restart%n_samples)//')'
     else if (tail(1) /= this%restart%last_frame_time .or. &
-             any(tail(2:7) /= this%restart%last_sample)) then
+             any(tail(2:8) /= this%restart%last_sample)) then
       what = "output_file = '"//out//"' is not the output it was written with (its frame "// &
              itoa(this%restart%n_frames)//' or history sample '// &
              itoa(this%restart%n_samples)//" differs from the checkpoint's record of them)"

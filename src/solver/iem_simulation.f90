@@ -88,7 +88,7 @@ module iem_simulation
     type(checkpoint_header_t) :: restart
     !> The last history sample written (time and the five energies) and the time of the last
     !> frame: a checkpoint records them to recognise its output on a restart.
-    real(wp) :: last_sample(6) = 0.0_wp, last_frame_time = 0.0_wp
+    real(wp) :: last_sample(7) = 0.0_wp, last_frame_time = 0.0_wp
   contains
     procedure :: setup => simulation_setup
     procedure :: run => simulation_run

@@ -28,6 +28,7 @@ contains
     integer :: stat
     stat = 0
     call each_field(this, reg, op_out, .false., stat)
+    if (this%model%fracture) call this%model%fr%refresh(this%lat%cell_mat)
   end procedure state_from_registry
 
   !> Documented at its interface in iem_simulation.f90.
@@ -71,6 +72,11 @@ contains
         call real_field('e_rev', centre_cell, springs_per_cell*depth, s%e_rev, .true.)
         call real_field('s_rev', centre_cell, springs_per_cell*depth, s%s_rev, .true.)
       end associate
+    end if
+    if (this%model%fracture) then
+      call real_field('fracture_kappa', centre_cell, 12, this%model%fr%kappa, .true.)
+      call real_field('fracture_time', centre_cell, 8, this%model%fr%t_fail, .true.)
+      call real_field('fracture_energy', centre_cell, 1, this%model%fr%diss, .true.)
     end if
 
   contains

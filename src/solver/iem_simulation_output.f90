@@ -112,8 +112,8 @@ contains
   !> Gather one history sample (global sums with one Allreduce) into the buffer.
   module procedure record_sample
     integer :: p, np, b, stat, o
-    real(wp) :: ke, se, e, scale
-    type(exact_sum_t) :: sums(4)
+    real(wp) :: ke, se, e, scale, frac
+    type(exact_sum_t) :: sums(5)
 
     np = size(this%probe_gid)
     this%sample = 0.0_wp
@@ -142,6 +142,7 @@ contains
       this%sample(3) = sums(3)%value()
       this%sample(4) = sums(4)%value()
     end if
+    frac = sums(5)%value()
     diverged = .not. all(ieee_is_finite(this%sample))
     if (diverged) return
     if (this%n_buf == size(this%h_time)) call flush_history(this, stat)
@@ -156,15 +157,15 @@ contains
     end if
     ! scale: the largest energy the run has held so far, so that the error stays meaningful
     ! when the current energy passes through zero
-    this%e_scale = max(this%e_scale, abs(this%sample(3)), e, this%sample(4))
+    this%e_scale = max(this%e_scale, abs(this%sample(3)), e, this%sample(4), frac)
     scale = max(this%e_scale, tiny(1.0_wp))
-    this%last_balance = abs(e + this%sample(4) - this%sample(3) - this%e0)/scale
+    this%last_balance = abs(e + this%sample(4) + frac - this%sample(3) - this%e0)/scale
     if (k == 0) this%last_balance = 0.0_wp
     this%h_time(b) = t
     this%h_step(b) = k
-    this%h_energy(:, b) = [ke, se, this%sample(3), this%sample(4), this%last_balance]
+    this%h_energy(:, b) = [ke, se, this%sample(3), this%sample(4), frac, this%last_balance]
     this%last_sample(1) = t
-    this%last_sample(2:6) = this%h_energy(:, b)
+    this%last_sample(2:7) = this%h_energy(:, b)
     do p = 1, np
       this%h_pu(:, p, b) = this%sample(4 + 4*(p - 1) + 1:4 + 4*(p - 1) + 2)
       this%h_pv(:, p, b) = this%sample(4 + 4*(p - 1) + 3:4 + 4*p)

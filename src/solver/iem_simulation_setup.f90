@@ -20,7 +20,7 @@ submodule (iem_simulation) iem_simulation_setup
   implicit none
 
   !> Samples of the history buffer (written when full and at every frame) and its energies.
-  integer, parameter :: n_energy = 5, history_chunk = 256
+  integer, parameter :: n_energy = 6, history_chunk = 256
   !> Most steps a dynamic run may take: 2^53, where the time t + dt stops advancing.
   real(wp), parameter :: max_steps = 9007199254740992.0_wp
 

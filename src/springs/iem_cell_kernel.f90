@@ -15,6 +15,8 @@ module iem_cell_kernel
                                    spring_strains
   use iem_masing, only: masing_trial, masing_commit, masing_mirror_strain
   use iem_kinds, only: ip
+  use iem_fracture, only: fracture_t
+  use iem_fracture_kernel, only: fracture_chunk, damaged_cell
   implicit none
   private
   public :: cell_energy, cell_force, cell_forces, cell_strain_measures
@@ -88,9 +90,11 @@ contains
   !> material's nonlinear law); k then gives only the geometry (lx, ly, il0), the same for all.
   !> With cell_energy and cell_power (one entry a cell; an empty array: not kept), each
   !> cell's energy and (when beta > 0) damping power are also stored (for sums that do not
-  !> depend on how the cells are split among ranks).
+  !> depend on how the cells are split among ranks). With fr (fracture) the cells whose damage
+  !> has begun or begins follow the damaged law, and with commit their damage is committed at
+  !> time (iem_fracture_kernel).
   pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
-                              nl, commit, ks, cell_mat, cell_energy, cell_power)
+                              nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: cell_nodes(:, :)
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
@@ -103,6 +107,8 @@ contains
     type(cell_constants_t), intent(in), optional :: ks(:)
     integer, intent(in), optional :: cell_mat(:)
     real(wp), intent(out), optional :: cell_energy(:), cell_power(:)
+    type(fracture_t), intent(inout), optional :: fr
+    real(wp), intent(in), optional :: time
     real(wp) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4), px(chunk, 4), py(chunk, 4)
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
     integer :: c0, m, c, q, nc, node, row
@@ -150,7 +156,16 @@ contains
           end do
         end do
       end if
-      if (present(ks) .and. present(cell_mat)) then
+      if (present(fr)) then
+        if (present(ks) .and. present(cell_mat)) then
+          call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
+                            pw, c_first=c0, accept=accept, ks=ks, mat=cell_mat(c0:c0 + m - 1), &
+                            fr=fr, time=time)
+        else
+          call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
+                            pw, c_first=c0, accept=accept, fr=fr, time=time)
+        end if
+      else if (present(ks) .and. present(cell_mat)) then
         if (present(nl)) then
           call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
                             pw, nl, c0, accept, ks, cell_mat(c0:c0 + m - 1))
@@ -182,9 +197,9 @@ contains
 
   !> Kernel over one chunk of m cells with corner values in unit-stride arrays (cell index
   !> first), as branch-free loops the compiler vectorises: geometry and strain measures; the
-  !> cell law; damping (only when damped); corner forces.
+  !> cell law; fracture (only with fr); damping (only when damped); corner forces.
   pure subroutine chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, &
-                               en, pw, nl, c_first, accept, ks, mat)
+                               en, pw, nl, c_first, accept, ks, mat, fr, time)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     logical, intent(in) :: damped, filtered
@@ -199,6 +214,9 @@ contains
     !> Several materials: the constants of each and the material of each cell of the chunk.
     type(cell_constants_t), intent(in), optional :: ks(:)
     integer, intent(in), optional :: mat(:)
+    !> Fracture state and the time of the state (committed with accept).
+    type(fracture_t), intent(inout), optional :: fr
+    real(wp), intent(in), optional :: time
     ! per cell: unit edge vectors e, shear gradients a (d s/d a) and b (d s/d b), strains ep
     ! and shear measures s, generalised stresses g (edges) and t (corners), and the rates
     real(wp) :: ex(chunk, 4), ey(chunk, 4), ax(chunk, 4), ay(chunk, 4)
@@ -206,7 +224,9 @@ contains
     real(wp) :: d(chunk, 4), r(chunk, 4), gd(chunk, 4), td(chunk, 4)
     real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, l1, l2, l3, l4, i1, i2, i3, i4
     real(wp) :: s1, s2, s3, s4, ilx, ily
-    integer :: c
+    real(wp) :: fe(chunk, 4), fs(chunk, 4)
+    logical :: dmg(chunk)
+    integer :: c, n_dmg
 
     ilx = k%il0(1)
     ily = k%il0(2)
@@ -263,6 +283,16 @@ contains
         en(c) = 0.5_wp*sum(g(c, :)*ep(c, :) + t(c, :)*s(c, :))
       end do
     end if
+    n_dmg = 0
+    if (present(fr)) then
+      if (present(ks)) then
+        call fracture_chunk(fr, c_first, m, k, ep, s, accept, time, g, t, en, fe, fs, dmg, &
+                            n_dmg, ks, mat)
+      else
+        call fracture_chunk(fr, c_first, m, k, ep, s, accept, time, g, t, en, fe, fs, dmg, &
+                            n_dmg)
+      end if
+    end if
     pw(1:m) = 0.0_wp
     if (damped) then
       call strain_rates(vx, vy, d, r)
@@ -270,6 +300,17 @@ contains
         call cell_law_mixed(ks, mat, m, d, r, gd, td)
       else
         call cell_law(k, m, d, r, gd, td)
+      end if
+      if (n_dmg > 0) then
+        do c = 1, m
+          if (.not. dmg(c)) cycle
+          if (present(ks)) then
+            call damaged_cell(ks(mat(c)), d(c, :), r(c, :), fe(c, :), fs(c, :), gd(c, :), &
+                              td(c, :))
+          else
+            call damaged_cell(k, d(c, :), r(c, :), fe(c, :), fs(c, :), gd(c, :), td(c, :))
+          end if
+        end do
       end if
       ! the damping power is f_damp . v: with filtered damping velocities, the strain rates of
       ! the velocities themselves are needed too

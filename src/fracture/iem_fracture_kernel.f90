@@ -1,0 +1,142 @@
+!> The force kernel's fracture part (docs/model.md, "Fracture"): on a chunk of cells whose
+!> elastic law is already evaluated, it finds the cells whose damage has begun or begins at
+!> the trial strains, gives them the damaged cell law (each energy term scaled by the smallest
+!> intact factor among the springs it uses) and, at an accepted state, commits their strain
+!> history, the energy their damage dissipates and the times their springs fail. An intact
+!> chunk costs one test of its strains against the onsets.
+module iem_fracture_kernel
+  use iem_kinds, only: wp
+  use iem_spring_constants, only: cell_constants_t, law_bending
+  use iem_fracture, only: fracture_t, edge_factor, shear_factor, intact_time
+  use iem_fracture_law, only: fracture_law_t, crit_tension, crit_crushing, crit_shear
+  implicit none
+  private
+  public :: fracture_chunk, damaged_cell
+
+contains
+
+  !> Damage of a chunk of m cells (the first is cell c_first) with edge strains ep(:, 4) and
+  !> shear measures s(:, 4) whose elastic g, t and en are given: the damaged cells (dmg, n_dmg
+  !> of them) get their intact edge factors fe and shear factors fs at the trial history
+  !> (largest strains so far and now) and their g, t, en from damaged_cell. With accept the
+  !> state is accepted at time: the history moves to it, the energy the new damage releases at
+  !> this strain is added to the cell's dissipation, and springs whose factor reached 0 get
+  !> their failure time. k: the constants (of every cell, or ks(mat(c)) with several
+  !> materials).
+  pure subroutine fracture_chunk(fr, c_first, m, k, ep, s, accept, time, g, t, en, fe, fs, &
+                                 dmg, n_dmg, ks, mat)
+    type(fracture_t), intent(inout) :: fr
+    integer, intent(in) :: c_first, m
+    type(cell_constants_t), intent(in) :: k
+    real(wp), intent(in) :: ep(:, :), s(:, :)
+    logical, intent(in) :: accept
+    real(wp), intent(in) :: time
+    real(wp), intent(inout) :: g(:, :), t(:, :), en(:)
+    real(wp), intent(out) :: fe(:, :), fs(:, :)
+    logical, intent(out) :: dmg(:)
+    integer, intent(out) :: n_dmg
+    type(cell_constants_t), intent(in), optional :: ks(:)
+    integer, intent(in), optional :: mat(:)
+    real(wp) :: kap(12), knew(12), fo(4), so(4), go(4), to(4)
+    integer :: c, q, cell, mc
+
+    n_dmg = 0
+    dmg(1:m) = .false.
+    if (.not. any(fr%hit(c_first:c_first + m - 1))) then
+      if (maxval(ep(1:m, :)) <= fr%onset_min(crit_tension) .and. &
+          -minval(ep(1:m, :)) <= fr%onset_min(crit_crushing) .and. &
+          maxval(abs(s(1:m, :))) <= fr%onset_min(crit_shear)) return
+    end if
+    mc = 1
+    do c = 1, m
+      cell = c_first + c - 1
+      if (present(mat)) mc = mat(c)
+      associate(lw => fr%laws(mc))
+        kap = fr%kappa(:, cell)
+        knew(1:4) = max(kap(1:4), ep(c, :))
+        knew(5:8) = max(kap(5:8), -ep(c, :))
+        knew(9:12) = max(kap(9:12), abs(s(c, :)))
+        dmg(c) = fr%hit(cell) .or. any(knew(1:4) > lw%onset(crit_tension)) .or. &
+                 any(knew(5:8) > lw%onset(crit_crushing)) .or. &
+                 any(knew(9:12) > lw%onset(crit_shear))
+        if (.not. dmg(c)) cycle
+        n_dmg = n_dmg + 1
+        do q = 1, 4
+          fe(c, q) = edge_factor(lw, knew, q)
+          fs(c, q) = shear_factor(lw, knew, q)
+        end do
+        if (present(ks)) then
+          call damaged_cell(ks(mc), ep(c, :), s(c, :), fe(c, :), fs(c, :), g(c, :), t(c, :))
+        else
+          call damaged_cell(k, ep(c, :), s(c, :), fe(c, :), fs(c, :), g(c, :), t(c, :))
+        end if
+        en(c) = 0.5_wp*sum(g(c, :)*ep(c, :) + t(c, :)*s(c, :))
+        if (.not. accept) cycle
+        ! the energy this strain held with the committed factors, less what it holds now
+        do q = 1, 4
+          fo(q) = edge_factor(lw, kap, q)
+          so(q) = shear_factor(lw, kap, q)
+        end do
+        if (present(ks)) then
+          call damaged_cell(ks(mc), ep(c, :), s(c, :), fo, so, go, to)
+        else
+          call damaged_cell(k, ep(c, :), s(c, :), fo, so, go, to)
+        end if
+        fr%diss(cell) = fr%diss(cell) + (0.5_wp*sum(go*ep(c, :) + to*s(c, :)) - en(c))
+        fr%kappa(:, cell) = knew
+        fr%hit(cell) = .true.
+        do q = 1, 4
+          if (fe(c, q) == 0.0_wp .and. fr%t_fail(q, cell) == intact_time) &
+            fr%t_fail(q, cell) = time
+          if (fs(c, q) == 0.0_wp .and. fr%t_fail(4 + q, cell) == intact_time) &
+            fr%t_fail(4 + q, cell) = time
+        end do
+      end associate
+    end do
+  end subroutine fracture_chunk
+
+  !> The damaged cell law of one cell: generalised stresses g(4) (edges) and t(4) (corners)
+  !> for edge strains ep(4) and shear measures s(4) (or their rates), with intact factors
+  !> fe(4) of the edges and fs(4) of the shear springs by their own criterion. Each energy
+  !> term is scaled by the smallest factor among the springs it uses: the paper's cell, edge
+  !> q by fe_q, the Poisson spring of corner q (edges q and q-1) by min(fe_q, fe_q-1), its
+  !> shear spring by min(fs_q, fe_q, fe_q-1); the bending-corrected cell, its x terms (mean
+  !> and bending) by min(fe_1, fe_3), its y terms by min(fe_2, fe_4), its volume term by the
+  !> least fe, its shear term by the least of all eight factors.
+  pure subroutine damaged_cell(k, ep, s, fe, fs, g, t)
+    type(cell_constants_t), intent(in) :: k
+    real(wp), intent(in) :: ep(4), s(4), fe(4), fs(4)
+    real(wp), intent(out) :: g(4), t(4)
+    real(wp) :: fp(4), fx, fy, fv, fg, mx, my, dx, dy, gm, sx, sy, v
+    integer :: q, qm, qp
+    if (k%law == law_bending) then
+      fx = min(fe(1), fe(3))
+      fy = min(fe(2), fe(4))
+      fv = minval(fe)
+      fg = min(fv, minval(fs))
+      mx = 0.5_wp*(ep(1) + ep(3))
+      my = 0.5_wp*(ep(2) + ep(4))
+      dx = ep(3) - ep(1)
+      dy = ep(2) - ep(4)
+      gm = 0.25_wp*(s(1) - s(2) + s(3) - s(4))
+      v = 4.0_wp*k%ch*fv*(mx + my)
+      sx = 2.0_wp*k%ce*fx*mx + v
+      sy = 2.0_wp*k%ce*fy*my + v
+      g = [sx - 2.0_wp*k%cb*fx*dx, sy + 2.0_wp*k%cb*fy*dy, sx + 2.0_wp*k%cb*fx*dx, &
+           sy - 2.0_wp*k%cb*fy*dy]
+      t = 2.0_wp*k%cg*fg*gm*[1.0_wp, -1.0_wp, 1.0_wp, -1.0_wp]
+    else
+      do q = 1, 4
+        qm = modulo(q - 2, 4) + 1
+        fp(q) = min(fe(q), fe(qm))
+        t(q) = 2.0_wp*k%cg*min(fs(q), fp(q))*s(q)
+      end do
+      do q = 1, 4
+        qm = modulo(q - 2, 4) + 1
+        qp = modulo(q, 4) + 1
+        g(q) = 2.0_wp*k%ce*fe(q)*ep(q) + 2.0_wp*k%ch*(fp(q)*(ep(q) + ep(qm)) + &
+                                                      fp(qp)*(ep(qp) + ep(q)))
+      end do
+    end if
+  end subroutine damaged_cell
+end module iem_fracture_kernel
