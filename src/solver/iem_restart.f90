@@ -21,7 +21,7 @@ contains
   module procedure check_restart
     character(len=:), allocatable :: what, path, why, out
     integer(i8) :: have(2)
-    real(wp) :: tail(7)
+    real(wp) :: tail(8)
     type(field_registry_t), target :: reg
     path = trim(this%cfg%run%restart)
     out = trim(this%cfg%run%output_file)
