@@ -135,9 +135,10 @@ contains
       return
     end if
     if (kap(q) > lw%onset(crit_tension)) a = softening_factor(kap(q), lw%onset(crit_tension), &
-      lw%final(d, crit_tension), lw%r, lw%phi1)
+      lw%final(d, crit_tension), lw%r, lw%phi1, lw%knee(d, crit_tension))
     if (kap(4 + q) > lw%onset(crit_crushing)) a = a*softening_factor(kap(4 + q), &
-      lw%onset(crit_crushing), lw%final(d, crit_crushing), lw%r, lw%phi1)
+      lw%onset(crit_crushing), lw%final(d, crit_crushing), lw%r, lw%phi1, &
+      lw%knee(d, crit_crushing))
   end function edge_factor
 
   !> Intact factor of the shear spring of corner q by its own criterion.
@@ -147,6 +148,6 @@ contains
     integer, intent(in) :: q
     a = 1.0_wp
     if (kap(8 + q) > lw%onset(crit_shear)) a = softening_factor(kap(8 + q), &
-      lw%onset(crit_shear), lw%final(1, crit_shear), 0.0_wp, 1.0_wp)
+      lw%onset(crit_shear), lw%final(1, crit_shear), 0.0_wp, 1.0_wp, lw%knee(1, crit_shear))
   end function shear_factor
 end module iem_fracture

@@ -8,7 +8,8 @@ module iem_input_fracture
   use iem_strings, only: rtoa
   use iem_config, only: config_t, material_config_t
   use iem_input_checks, only: bad
-  use iem_fracture_law, only: fracture_law_t, fracture_law, largest_band, crit_shear
+  use iem_fracture_law, only: fracture_law_t, fracture_law, largest_band, crit_shear, &
+                              soft_linear, soft_bilinear
   use iem_spring_constants, only: spring_moduli
   implicit none
   private
@@ -149,7 +150,7 @@ contains
               mat%shear_failure_strain]
     energy = [mat%fracture_energy, mat%crushing_energy, mat%shear_fracture_energy]
     call fracture_law(mat%young, mat%poisson, plane_strain, lx, ly, strength, strain, energy, &
-                      law, ok, bad_crit)
+                      law, ok, bad_crit, softening_shape(mat))
   end subroutine material_fracture_law
 
   !> Refuse a material whose softening branch would snap back on the cells lx x ly (a cell
@@ -174,13 +175,22 @@ contains
         modulus = law%phi1*m(1)
         if (i == crit_shear) modulus = 2.0_wp*m(3)
         gf = [mat%fracture_energy, mat%crushing_energy, mat%shear_fracture_energy]
-        h = largest_band(modulus, law%onset(i), gf(i))
+        h = largest_band(modulus, law%onset(i), gf(i), softening_shape(mat))
         call bad(trim(labels(k)), trim(energy_key(i)), rtoa(gf(i)), 'is too small for '// &
                  'cells of '//rtoa(lx)//' x '//rtoa(ly)//' m: the softening branch would '// &
                  'snap back; cells (across the crack band) must be smaller than '//rtoa(h)// &
-                 ' m (2 E Gf / f^2), or the energy larger', stat, msg)
+                 ' m ('//trim(merge('2.0', '1.2', softening_shape(mat) == soft_linear))// &
+                 ' E Gf / f^2 with '//trim(mat%softening)//' softening), or the energy '// &
+                 'larger', stat, msg)
         return
       end associate
     end do
   end subroutine check_fracture_cells
+
+  !> The softening shape of material mat (iem_fracture_law's soft_linear, soft_bilinear).
+  pure integer function softening_shape(mat) result(shape)
+    type(material_config_t), intent(in) :: mat
+    shape = soft_linear
+    if (mat%softening == 'bilinear') shape = soft_bilinear
+  end function softening_shape
 end module iem_input_fracture
