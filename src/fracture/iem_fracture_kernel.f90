@@ -37,15 +37,23 @@ contains
     integer, intent(out) :: n_dmg
     type(cell_constants_t), intent(in), optional :: ks(:)
     integer, intent(in), optional :: mat(:)
-    real(wp) :: kap(12), knew(12), fo(4), so(4), go(4), to(4)
+    real(wp) :: kap(12), knew(12), fo(4), so(4), go(4), to(4), e_hi, e_lo, s_hi
     integer :: c, q, cell, mc
 
     n_dmg = 0
     dmg(1:m) = .false.
     if (.not. any(fr%hit(c_first:c_first + m - 1))) then
-      if (maxval(ep(1:m, :)) <= fr%onset_min(crit_tension) .and. &
-          -minval(ep(1:m, :)) <= fr%onset_min(crit_crushing) .and. &
-          maxval(abs(s(1:m, :))) <= fr%onset_min(crit_shear)) return
+      ! one pass over the chunk's strains: the largest stretch, compression and shear
+      e_hi = 0.0_wp
+      e_lo = 0.0_wp
+      s_hi = 0.0_wp
+      do c = 1, m
+        e_hi = max(e_hi, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
+        e_lo = min(e_lo, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
+        s_hi = max(s_hi, abs(s(c, 1)), abs(s(c, 2)), abs(s(c, 3)), abs(s(c, 4)))
+      end do
+      if (e_hi <= fr%onset_min(crit_tension) .and. -e_lo <= fr%onset_min(crit_crushing) .and. &
+          s_hi <= fr%onset_min(crit_shear)) return
     end if
     mc = 1
     do c = 1, m
