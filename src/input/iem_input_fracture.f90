@@ -12,7 +12,7 @@ module iem_input_fracture
   use iem_spring_constants, only: spring_moduli
   implicit none
   private
-  public :: check_fracture_keys, check_fracture_cells, material_fracture_law
+  public :: check_fracture_keys, check_fracture_cells, check_fracture_scene, material_fracture_law
 
   !> Names of each criterion's strength, limit strain and energy, as the input writes them.
   character(len=*), parameter :: strength_key(3) = [character(len=26) :: 'tensile_strength', &
@@ -153,6 +153,34 @@ contains
     call fracture_law(mat%young, mat%poisson, plane_strain, lx, ly, strength, strain, energy, &
                       law, ok, bad_crit)
   end subroutine material_fracture_law
+
+  !> Refuse fracture (a material with fracture = .true. or a shape with material = 'crack')
+  !> in a body that also has nonlinear springs: the force kernel has one or the other.
+  subroutine check_fracture_scene(cfg, mat_labels, shape_labels, stat, msg)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: mat_labels(:), shape_labels(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=*), parameter :: why = 'cannot yet be combined with nonlinear springs '// &
+      '(springs that fail soften linearly from an elastic line; docs/model.md, "Fracture"): '
+    integer :: k, nl
+    stat = 0
+    msg = ''
+    nl = findloc(cfg%materials(:)%nonlinear, .true., dim=1)
+    if (nl == 0) return
+    do k = 1, size(cfg%materials)
+      if (.not. cfg%materials(k)%fracture) cycle
+      call bad(trim(mat_labels(k)), 'fracture', '.true.', why//trim(mat_labels(nl))// &
+               ' has nonlinear = .true.', stat, msg)
+      return
+    end do
+    do k = 1, size(cfg%shapes)
+      if (.not. cfg%shapes(k)%crack) cycle
+      call bad(trim(shape_labels(k)), 'material', "'crack'", why//trim(mat_labels(nl))// &
+               ' has nonlinear = .true.', stat, msg)
+      return
+    end do
+  end subroutine check_fracture_scene
 
   !> Refuse a material whose softening branch would snap back on the cells lx x ly (a cell
   !> wider across the crack band than 2 E Gf / f^2, G for shear), naming the largest cell
