@@ -1,4 +1,5 @@
-"""Command-line interface: ``iem-post {history,frame,summary,all} FILE.h5 ...``."""
+"""Command-line interface: ``iem-post COMMAND FILE.h5 ...`` (history, frame, summary, all,
+and for fracture runs crack-map, fragments, curve, animate)."""
 
 from __future__ import annotations
 
@@ -6,15 +7,19 @@ import argparse
 import math
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
 from . import __version__
+from .animation import ANIMATION_FIELDS, write_animation, writer_for
+from .curves import parse_target, plot_curves, read_curves, read_reference, write_csv
+from .fracture import fragment_sizes, read_failed_springs, read_fragment_history
+from .fracture_plots import plot_crack_map, plot_fragments
 from .plots import FIELDS, auto_scale, plot_energy, plot_frame, plot_probes, save_figure
-from .reader import IemFile, IemFileError
+from .reader import IemFile, IemFileError, InputError
 
 __all__ = ["main", "build_parser"]
 
@@ -32,6 +37,44 @@ def _scale_arg(text: str) -> float | None:
     if not math.isfinite(value) or value < 0.0:
         raise argparse.ArgumentTypeError(f"scale must be finite and >= 0, got {text!r}")
     return value
+
+
+def _number(text: str) -> float:
+    """Parse a finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    """Parse an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return value
+
+
+def _scale_pair(text: str) -> tuple[float, float]:
+    """Parse 'A,B': two finite numbers (the reference's cmod and load factors)."""
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected two numbers 'CMOD,LOAD', got {text!r}")
+    return _number(parts[0]), _number(parts[1])
+
+
+def _probe_pair(text: str) -> tuple[str, str]:
+    """Parse 'A,B': two probe names."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 2 or not all(parts):
+        raise argparse.ArgumentTypeError(f"expected two probe names 'A,B', got {text!r}")
+    return parts[0], parts[1]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -104,7 +147,139 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_file(p_all)
     add_outdir(p_all)
+    _add_fracture_commands(sub, add_file)
     return parser
+
+
+def _add_fracture_commands(
+    sub: argparse._SubParsersAction,  # type: ignore[type-arg]
+    add_file: Callable[[argparse.ArgumentParser], None],
+) -> None:
+    """Add the crack-map, fragments, curve and animate sub-commands."""
+    p_crack = sub.add_parser(
+        "crack-map", help="draw the failed springs of a frame (fracture runs)",
+        description="Draw the lattice of frame N (undeformed, or at coordinates + scale * "
+        "displacement) with the springs failed by then as segments: an edge spring as its "
+        "edge, a shear spring as a short mark from its corner towards the cell's centre; "
+        "coloured by time of failure, pre-cut springs in grey. Reads "
+        "/frames/frame_NNNNNN/failed_springs.",
+    )
+    add_file(p_crack)
+    p_crack.add_argument(
+        "--frame", type=int, default=-1, metavar="N",
+        help="frame index, 0-based; negative counts from the end (default: -1, the last)",
+    )
+    p_crack.add_argument(
+        "--scale", type=_scale_arg, default=0.0, metavar="S|auto",
+        help="displacement magnification (default 0: the undeformed lattice); 'auto' makes "
+        "the largest displacement 10%% of the body's larger dimension",
+    )
+    p_crack.add_argument(
+        "-o", "--output", type=Path, default=None, metavar="PNG",
+        help="image to write (default: <stem>_cracks_NNNNNN.png next to FILE.h5)",
+    )
+
+    p_frag = sub.add_parser(
+        "fragments", help="plot the number and sizes of fragments (fracture runs)",
+        description="Plot the number of fragments and the five largest fragment sizes "
+        "(nodes) against time (/history/fracture/fragments, largest_fragments), and the "
+        "fragment sizes at the end as a rank plot and a histogram: of all fragments of the "
+        "last frame (computed from its failed springs) when it has them, else of the five "
+        "largest of the last sample.",
+    )
+    add_file(p_frag)
+    p_frag.add_argument(
+        "-o", "--output", type=Path, default=None, metavar="PNG",
+        help="image to write (default: <stem>_fragments.png next to FILE.h5)",
+    )
+
+    p_curve = sub.add_parser(
+        "curve", help="load-displacement and load-CMOD curves",
+        description="Plot a load against a probe displacement and, with --cmod, against the "
+        "crack-mouth opening. Load = component of /history/reactions/BCNAME (the force the "
+        "bc's prescribed dofs exert on the body, N; a bc without a name is bc_K, K its "
+        "1-based place in the input) times --load-scale: use a negative scale to plot a "
+        "pushing load as positive, and a factor to convert per thickness (e.g. the "
+        "specimen's thickness over the model's). Displacement = component of "
+        "/history/probes/PROBE/displacement in m times --displacement-scale; CMOD = u_x(B) - u_x(A) (A the probe left of the "
+        "notch, B right of it; positive when opening), in m times --cmod-scale. The "
+        "--reference table is multiplied by --reference-scale "
+        "CMOD,LOAD to bring it into the plot's units: for a table in mm and N against a "
+        "model in m, --reference-scale 1e-3,1 (or --cmod-scale 1e3 and the table as it is). "
+        "Write negative factors with '=', e.g. --load-scale=-20.",
+    )
+    add_file(p_curve)
+    p_curve.add_argument(
+        "--load", required=True, metavar="BCNAME[:x|y]",
+        help="the bc whose reaction is the load, and its component (default y)",
+    )
+    p_curve.add_argument(
+        "--displacement", required=True, metavar="PROBE[:x|y]",
+        help="the probe whose displacement is the abscissa, and its component (default y)",
+    )
+    p_curve.add_argument(
+        "--cmod", type=_probe_pair, default=None, metavar="PROBE_A,PROBE_B",
+        help="also plot the load against CMOD = u_x(PROBE_B) - u_x(PROBE_A)",
+    )
+    p_curve.add_argument(
+        "--load-scale", type=_number, default=1.0, metavar="F",
+        help="factor on the reaction (default 1; -1 flips the sign)",
+    )
+    p_curve.add_argument(
+        "--displacement-scale", type=_number, default=1.0, metavar="F",
+        help="factor on the displacement (default 1: m; 1e3 for mm, -1e3 for mm downwards; "
+        "write a negative value as --displacement-scale=-1e3)",
+    )
+    p_curve.add_argument(
+        "--cmod-scale", type=_number, default=1.0, metavar="F",
+        help="factor on the CMOD (default 1: m; 1e3 for mm)",
+    )
+    p_curve.add_argument(
+        "--reference", type=Path, default=None, metavar="CSV",
+        help="a CSV with the columns cmod, load_min, load_max (header line first), drawn "
+        "as a shaded band on the load-CMOD plot (needs --cmod)",
+    )
+    p_curve.add_argument(
+        "--reference-scale", type=_scale_pair, default=(1.0, 1.0), metavar="CMOD,LOAD",
+        help="factors on the reference's cmod and on its loads (default 1,1)",
+    )
+    p_curve.add_argument(
+        "-o", "--output", type=Path, default=None, metavar="PNG",
+        help="image to write (default: <stem>_curve.png next to FILE.h5)",
+    )
+    p_curve.add_argument(
+        "--csv", type=Path, default=None, metavar="OUT.csv",
+        help="also write the plotted curves: time, displacement, load[, cmod]",
+    )
+
+    p_anim = sub.add_parser(
+        "animate", help="animate a frame field on the deformed lattice",
+        description="Write one picture per frame of a field on the lattice at coordinates + "
+        "scale * displacement as a GIF (Pillow) or an MP4 (needs ffmpeg). displacement and "
+        "velocity are drawn as the cell mean of the corners' magnitudes; damage is "
+        "/frames/frame_NNNNNN/damage (fracture runs). The colour range and the view are "
+        "fixed over the animation.",
+    )
+    add_file(p_anim)
+    p_anim.add_argument(
+        "--field", choices=list(ANIMATION_FIELDS), default="displacement",
+        help="the field (default displacement)",
+    )
+    p_anim.add_argument(
+        "-o", "--output", type=Path, default=None, metavar="OUT.gif|OUT.mp4",
+        help="animation to write (default: <stem>_<field>.gif next to FILE.h5)",
+    )
+    p_anim.add_argument("--fps", type=_positive_int, default=5, metavar="N",
+                        help="pictures per second (default 5)")
+    p_anim.add_argument(
+        "--scale", type=_scale_arg, default=None, metavar="S|auto",
+        help="displacement magnification; 'auto' (default) makes the largest displacement "
+        "of all frames 10%% of the body's larger dimension",
+    )
+    p_anim.add_argument("--every", type=_positive_int, default=1, metavar="K",
+                        help="use every K-th frame (default 1: all)")
+    p_anim.add_argument("--dpi", type=_positive_int, default=100, metavar="DPI",
+                        help="resolution (default 100; a GIF is held in memory until written)")
 
 
 def _outdir(file: Path, outdir: Path | None) -> Path:
@@ -194,6 +369,88 @@ def _summary(data: IemFile, out: TextIO) -> None:
     print("\n".join(lines), file=out)
 
 
+def _crack_map(data: IemFile, args: argparse.Namespace, out: TextIO) -> None:
+    """Draw the failed springs of one frame and print the image path and counts."""
+    info, springs = read_failed_springs(data, args.frame)
+    frame = data.frame(info.index)
+    mesh = data.mesh
+    scale = auto_scale(mesh.coordinates, frame.displacement) if args.scale is None else args.scale
+    shape = "undeformed" if scale == 0.0 else f"displacement scale {scale:.4g}"
+    title = (f"{data.path.name}: frame {info.index} of {data.n_frames - 1}, "
+             f"t = {info.time:.6g} s, {shape}")
+    output = args.output or data.path.parent / f"{data.path.stem}_cracks_{info.index:06d}.png"
+    fig = plot_crack_map(mesh, frame.displacement, springs, scale=scale, title=title)
+    path = save_figure(fig, output)
+    counts = ", ".join(f"{n} {name}" for name, n in springs.counts().items())
+    print(f"{path}  (frame {info.index}, {len(springs)} failed: {counts})", file=out)
+
+
+def _fragments(data: IemFile, args: argparse.Namespace, out: TextIO) -> None:
+    """Plot the fragment history and the final sizes; print the image path and the counts."""
+    history = read_fragment_history(data)
+    sizes, label = None, ""
+    if data.n_frames:
+        try:
+            info, springs = read_failed_springs(data, -1)
+        except IemFileError:
+            info = None  # no failed springs in the last frame: the 5 largest stand in
+        if info is not None:
+            sizes = fragment_sizes(data.mesh.n_nodes, data.mesh.cells, springs)
+            label = f"all {sizes.size} fragments at t = {info.time:.6g} s (frame {info.index})"
+            if (history.time.size and math.isclose(info.time, history.time[-1], rel_tol=1e-12)
+                    and sizes.size != history.count[-1]):
+                print(f"{PROG}: warning: the last frame's failed springs make {sizes.size} "
+                      f"fragments, /history/fracture/fragments says {history.count[-1]}",
+                      file=sys.stderr)
+    fig = plot_fragments(history, sizes, label, title=f"{data.path.name}: fragments")
+    path = save_figure(fig, args.output or data.path.parent / f"{data.path.stem}_fragments.png")
+    if history.time.size:
+        largest = ", ".join(str(int(n)) for n in history.largest[-1] if n > 0)
+        print(f"{path}  ({history.count[-1]} fragments at t = {history.time[-1]:.6g} s; "
+              f"largest: {largest or 'none'})", file=out)
+    else:
+        print(f"{path}  (no history samples)", file=out)
+
+
+def _curve(data: IemFile, args: argparse.Namespace, out: TextIO) -> None:
+    """Plot the load curves (and the reference band), optionally write the CSV; print both."""
+    reference = (read_reference(args.reference, args.reference_scale)
+                 if args.reference is not None else None)
+    curves = read_curves(data, parse_target(args.load), parse_target(args.displacement),
+                         args.cmod, args.load_scale, args.displacement_scale, args.cmod_scale)
+    fig = plot_curves(curves, reference, title=f"{data.path.name}: load curves")
+    path = save_figure(fig, args.output or data.path.parent / f"{data.path.stem}_curve.png")
+    if curves.time.size:
+        k = curves.peak()
+        at = f"displacement {curves.displacement[k]:.6g}"
+        if curves.cmod is not None:
+            at += f", CMOD {curves.cmod[k]:.6g}"
+        print(f"{path}  (peak load {curves.load[k]:.6g} at t = {curves.time[k]:.6g} s, {at})",
+              file=out)
+    else:
+        print(f"{path}  (no history samples)", file=out)
+    if args.csv is not None:
+        print(write_csv(curves, args.csv), file=out)
+
+
+def _animate(data: IemFile, args: argparse.Namespace, out: TextIO) -> None:
+    """Write the animation and print its path, picture count and scale."""
+    output = args.output or data.path.parent / f"{data.path.stem}_{args.field}.gif"
+    path, count, scale = write_animation(data, args.field, output, fps=args.fps,
+                                         scale=args.scale, every=args.every, dpi=args.dpi)
+    print(f"{path}  ({count} pictures, field {args.field}, scale {scale:.4g}, "
+          f"{args.fps} per second)", file=out)
+
+
+#: Sub-commands of fracture runs and the functions that carry them out.
+_FRACTURE_COMMANDS = {
+    "crack-map": _crack_map,
+    "fragments": _fragments,
+    "curve": _curve,
+    "animate": _animate,
+}
+
+
 def _run(args: argparse.Namespace, out: TextIO) -> None:
     """Carry out the parsed command; raises IemFileError on bad input."""
     with warnings.catch_warnings(record=True) as caught:
@@ -202,7 +459,9 @@ def _run(args: argparse.Namespace, out: TextIO) -> None:
     for warning in caught:
         print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
     with data:
-        if args.command == "summary":
+        if args.command in _FRACTURE_COMMANDS:
+            _FRACTURE_COMMANDS[args.command](data, args, out)
+        elif args.command == "summary":
             _summary(data, out)
         elif args.command == "history":
             for path in _write_history(data, _outdir(args.file, args.outdir)):
@@ -224,10 +483,15 @@ def _run(args: argparse.Namespace, out: TextIO) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point: parse ``argv`` (default sys.argv[1:]), run, return the exit status."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command == "curve" and args.reference is not None and args.cmod is None:
+        parser.error("curve: --reference is a load-CMOD band and needs --cmod PROBE_A,PROBE_B")
     try:
+        if args.command == "animate" and args.output is not None:
+            writer_for(args.output, args.fps)  # refuse an unusable format before any work
         _run(args, sys.stdout)
-    except (IemFileError, OSError) as exc:  # OSError: e.g. an output folder not writable
+    except (IemFileError, InputError, OSError) as exc:  # OSError: e.g. an output folder not writable
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 1
     return 0

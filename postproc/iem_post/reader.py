@@ -15,6 +15,7 @@ import numpy as np
 __all__ = [
     "IemFile",
     "IemFileError",
+    "InputError",
     "FrameIndexError",
     "IncompleteFileWarning",
     "Mesh",
@@ -28,6 +29,10 @@ _FRAME_NAME = re.compile(r"^frame_(\d+)$")
 
 class IemFileError(Exception):
     """The file is missing, unreadable, or not a well-formed iem output file."""
+
+
+class InputError(Exception):
+    """An input other than the iem file (a reference table, an output format) is unusable."""
 
 
 class FrameIndexError(IemFileError, IndexError):
@@ -232,6 +237,23 @@ class IemFile:
         if isinstance(obj, h5py.Dataset) and obj.ndim == 1:
             return np.asarray(obj[()])
         return np.zeros(0)
+
+    def has_dataset(self, name: str) -> bool:
+        """True when ``name`` (a path inside the file) is a dataset."""
+        return isinstance(self._h5.get(name.lstrip("/")), h5py.Dataset)
+
+    def dataset(self, name: str, ndim: int | None = None, width: int | None = None) -> np.ndarray:
+        """Read dataset ``name`` fully, raising IemFileError if missing or misshapen."""
+        return self._dataset(name.lstrip("/"), ndim=ndim, width=width)
+
+    def history_series(self, name: str, width: int | None = None) -> np.ndarray:
+        """A 1-D (or, with ``width``, 2-D) history dataset cut to the number of samples."""
+        return self._history_series(name.lstrip("/"), width=width)
+
+    def group_members(self, name: str) -> list[str]:
+        """Names of the members of group ``name`` (sorted), or [] if there is no such group."""
+        group = self._h5.get(name.lstrip("/"))
+        return sorted(group) if isinstance(group, h5py.Group) else []
 
     def attr(self, name: str, obj: str = "/") -> Any:
         """Decoded attribute ``name`` of object ``obj`` (default the root), or None."""

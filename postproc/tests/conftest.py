@@ -149,3 +149,82 @@ def make_iem_file(tmp_path: Path) -> Callable[..., Synthetic]:
         return write_iem_file(tmp_path / name, **options)  # type: ignore[arg-type]
 
     return make
+
+
+# ---------------------------------------------------------------------------- fracture runs
+#: Failed springs of the synthetic fracture run: (cell, spring, kind, time). Column 1's
+#: horizontal edges (cells 1 and 5, bottom and top) fail by 0.7 ms, cutting the body into the
+#: nodes with i <= 1 (6) and i >= 2 (9); by 1.9 ms the upper-right node (14) loses both its
+#: edges (cell 7, right and top): 8 + 6 + 1. The pre-cut edge (cell 0, right), the shear
+#: spring (cell 2, SE corner) and the crushed edge (cell 6, left) each leave the other cell of
+#: their edge intact, so they cut nothing.
+FAILURES = [
+    (0, 1, 4, 0.0),
+    (1, 0, 1, 0.5e-3),
+    (1, 2, 1, 0.6e-3),
+    (5, 0, 1, 0.6e-3),
+    (5, 2, 1, 0.7e-3),
+    (2, 5, 3, 1.2e-3),
+    (6, 3, 2, 1.5e-3),
+    (7, 1, 1, 1.8e-3),
+    (7, 2, 1, 1.9e-3),
+]
+#: Fragment counts and the five largest at SAMPLE_TIMES (0, 0.5, 1, 1.5, 2 ms), by hand.
+FRAGMENTS = np.array([1, 1, 2, 2, 3], dtype=np.int64)
+LARGEST = np.array(
+    [[15, 0, 0, 0, 0], [15, 0, 0, 0, 0], [9, 6, 0, 0, 0], [9, 6, 0, 0, 0], [8, 6, 1, 0, 0]],
+    dtype=np.int64,
+)
+#: Reactions of the bc 'load' (y) and probe histories at SAMPLE_TIMES.
+LOAD_Y = np.array([0.0, -600.0, -1000.0, -700.0, -300.0])
+LOAD_POINT_UY = -1.0e-4 * np.arange(5)
+CMOD_A_UX = -1.0e-5 * np.arange(5)
+CMOD_B_UX = 2.0e-5 * np.arange(5)
+
+
+def failed_by(time: float) -> list[tuple[int, int, int, float]]:
+    """The FAILURES with a failure time <= ``time``, sorted by (cell, spring)."""
+    return sorted((f for f in FAILURES if f[3] <= time), key=lambda f: (f[0], f[1]))
+
+
+def write_fracture_file(path: Path, *, fracture: bool = True, **options: object) -> Synthetic:
+    """A synthetic file (write_iem_file) plus reactions, three more probes and, with
+    ``fracture``, damage and failed springs per frame and the fragment history."""
+    truth = write_iem_file(path, **options)  # type: ignore[arg-type]
+    n_samples = SAMPLE_TIMES.size
+    with h5py.File(path, "a") as h5:
+        hist = h5["history"]
+        hist["reactions/load"] = np.column_stack([np.zeros(n_samples), LOAD_Y])
+        hist["reactions/bc_2"] = np.column_stack([np.full(n_samples, 5.0), np.zeros(n_samples)])
+        for name, ux, uy in (
+            ("load_point", np.zeros(n_samples), LOAD_POINT_UY),
+            ("a", CMOD_A_UX, np.zeros(n_samples)),
+            ("b", CMOD_B_UX, np.zeros(n_samples)),
+        ):
+            probe = hist.create_group(f"probes/{name}")
+            probe["displacement"] = np.column_stack([ux, uy])
+            probe["velocity"] = np.zeros((n_samples, 2))
+        if not fracture:
+            return truth
+        for k, t in enumerate(truth.frame_times):
+            group = h5[f"frames/frame_{k:06d}"]
+            failed = failed_by(float(t))
+            damage = np.zeros(NX * NY)
+            for cell, *_ in failed:
+                damage[cell] += 1.0 / 8.0
+            group["damage"] = damage
+            springs = group.create_group("failed_springs")
+            springs["cell"] = np.array([f[0] for f in failed], dtype=np.int64)
+            springs["spring"] = np.array([f[1] for f in failed], dtype=np.int32)
+            springs["kind"] = np.array([f[2] for f in failed], dtype=np.int32)
+            springs["time"] = np.array([f[3] for f in failed], dtype=np.float64)
+        frac = hist.create_group("fracture")
+        frac["fragments"] = FRAGMENTS
+        frac["largest_fragments"] = LARGEST
+    return truth
+
+
+@pytest.fixture
+def fracture_file(tmp_path: Path) -> Synthetic:
+    """A complete synthetic output file of a run with fracture."""
+    return write_fracture_file(tmp_path / "frac.h5")

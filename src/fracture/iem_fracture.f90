@@ -11,7 +11,7 @@ module iem_fracture
   use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
-  public :: fracture_t, intact_time, precut_kappa, edge_factor, shear_factor
+  public :: fracture_t, intact_time, precut_kappa, edge_factor, shear_factor, failure_kind
   public :: fail_tension, fail_crushing, fail_shear, fail_precut
 
   !> Failure time of a spring that has not failed.
@@ -135,9 +135,10 @@ contains
       return
     end if
     if (kap(q) > lw%onset(crit_tension)) a = softening_factor(kap(q), lw%onset(crit_tension), &
-      lw%final(d, crit_tension), lw%r, lw%phi1)
+      lw%final(d, crit_tension), lw%r, lw%phi1, lw%knee(d, crit_tension))
     if (kap(4 + q) > lw%onset(crit_crushing)) a = a*softening_factor(kap(4 + q), &
-      lw%onset(crit_crushing), lw%final(d, crit_crushing), lw%r, lw%phi1)
+      lw%onset(crit_crushing), lw%final(d, crit_crushing), lw%r, lw%phi1, &
+      lw%knee(d, crit_crushing))
   end function edge_factor
 
   !> Intact factor of the shear spring of corner q by its own criterion.
@@ -147,6 +148,32 @@ contains
     integer, intent(in) :: q
     a = 1.0_wp
     if (kap(8 + q) > lw%onset(crit_shear)) a = softening_factor(kap(8 + q), &
-      lw%onset(crit_shear), lw%final(1, crit_shear), 0.0_wp, 1.0_wp)
+      lw%onset(crit_shear), lw%final(1, crit_shear), 0.0_wp, 1.0_wp, lw%knee(1, crit_shear))
   end function shear_factor
+
+  !> How spring j (1..4: edge j; 5..8: the shear spring of corner j-4, by its own criterion)
+  !> of a cell of law lw with strain history kap(12) has failed: fail_precut, fail_tension or
+  !> fail_crushing (the criterion whose factor reached 0; tension when both did), fail_shear;
+  !> 0 while that factor is not 0.
+  pure integer function failure_kind(lw, kap, j) result(how)
+    type(fracture_law_t), intent(in) :: lw
+    real(wp), intent(in) :: kap(12)
+    integer, intent(in) :: j
+    integer :: d
+    how = 0
+    if (j > 4) then
+      if (shear_factor(lw, kap, j - 4) == 0.0_wp) how = fail_shear
+      return
+    end if
+    d = 2 - mod(j, 2)
+    if (kap(j) == precut_kappa) then
+      how = fail_precut
+    else if (kap(j) > lw%onset(crit_tension) .and. softening_factor(kap(j), &
+             lw%onset(crit_tension), lw%final(d, crit_tension), lw%r, lw%phi1) == 0.0_wp) then
+      how = fail_tension
+    else if (kap(4 + j) > lw%onset(crit_crushing) .and. softening_factor(kap(4 + j), &
+             lw%onset(crit_crushing), lw%final(d, crit_crushing), lw%r, lw%phi1) == 0.0_wp) then
+      how = fail_crushing
+    end if
+  end function failure_kind
 end module iem_fracture

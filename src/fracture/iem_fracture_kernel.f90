@@ -100,30 +100,30 @@ contains
   !> fe(4) of the edges and fs(4) of the shear springs by their own criterion. Each energy
   !> term is scaled by the smallest factor among the springs it uses: the paper's cell, edge
   !> q by fe_q, the Poisson spring of corner q (edges q and q-1) by min(fe_q, fe_q-1), its
-  !> shear spring by min(fs_q, fe_q, fe_q-1); the bending-corrected cell, its x terms (mean
-  !> and bending) by min(fe_1, fe_3), its y terms by min(fe_2, fe_4), its volume term by the
-  !> least fe, its shear term by the least of all eight factors.
+  !> shear spring by min(fs_q, fe_q, fe_q-1); the bending-corrected cell, whose x part is
+  !> written as a term of each x edge plus a coupling term, each x edge's term by its factor
+  !> and the coupling by min(fe_1, fe_3) (y alike), its volume term by the least fe, its shear
+  !> term by the least of all eight factors.
   pure subroutine damaged_cell(k, ep, s, fe, fs, g, t)
     type(cell_constants_t), intent(in) :: k
     real(wp), intent(in) :: ep(4), s(4), fe(4), fs(4)
     real(wp), intent(out) :: g(4), t(4)
-    real(wp) :: fp(4), fx, fy, fv, fg, mx, my, dx, dy, gm, sx, sy, v
+    real(wp) :: fp(4), fx, fy, fv, fg, mx, my, gm, v, cc
     integer :: q, qm, qp
     if (k%law == law_bending) then
+      ! x part 2ce mx^2 + cb dx^2 = 2cb (e1^2 + e3^2) + (ce/2 - cb) (e1 + e3)^2: a term of
+      ! each edge (its own factor) and a coupling term (the smaller factor); y alike
       fx = min(fe(1), fe(3))
       fy = min(fe(2), fe(4))
       fv = minval(fe)
       fg = min(fv, minval(fs))
-      mx = 0.5_wp*(ep(1) + ep(3))
-      my = 0.5_wp*(ep(2) + ep(4))
-      dx = ep(3) - ep(1)
-      dy = ep(2) - ep(4)
+      mx = ep(1) + ep(3)
+      my = ep(2) + ep(4)
       gm = 0.25_wp*(s(1) - s(2) + s(3) - s(4))
-      v = 4.0_wp*k%ch*fv*(mx + my)
-      sx = 2.0_wp*k%ce*fx*mx + v
-      sy = 2.0_wp*k%ce*fy*my + v
-      g = [sx - 2.0_wp*k%cb*fx*dx, sy + 2.0_wp*k%cb*fy*dy, sx + 2.0_wp*k%cb*fx*dx, &
-           sy - 2.0_wp*k%cb*fy*dy]
+      v = 2.0_wp*k%ch*fv*(mx + my)
+      cc = k%ce - 2.0_wp*k%cb
+      g = [4.0_wp*k%cb*fe(1)*ep(1) + cc*fx*mx + v, 4.0_wp*k%cb*fe(2)*ep(2) + cc*fy*my + v, &
+           4.0_wp*k%cb*fe(3)*ep(3) + cc*fx*mx + v, 4.0_wp*k%cb*fe(4)*ep(4) + cc*fy*my + v]
       t = 2.0_wp*k%cg*fg*gm*[1.0_wp, -1.0_wp, 1.0_wp, -1.0_wp]
     else
       do q = 1, 4

@@ -100,6 +100,8 @@ module iem_config
     !> (the three above) or its limit strain is given, with its fracture energy (J/m^2);
     !> 0: not given.
     logical :: fracture = .false.
+    !> Softening shape of every criterion: 'linear' or 'bilinear' (docs/model.md).
+    character(len=8) :: softening = 'linear'
     real(wp) :: tensile_failure_strain = 0.0_wp, compressive_failure_strain = 0.0_wp
     real(wp) :: shear_failure_strain = 0.0_wp
     real(wp) :: fracture_energy = 0.0_wp, crushing_energy = 0.0_wp

@@ -207,14 +207,16 @@ contains
     real(wp) :: tensile_failure_strain, compressive_failure_strain, shear_failure_strain
     real(wp) :: fracture_energy, crushing_energy, shear_fracture_energy
     logical :: nonlinear, fracture
+    character(len=8) :: softening
     integer :: history_depth
     namelist /material/ name, e, nu, density, nonlinear, tensile_strength, &
       compressive_strength, shear_strength, history_depth, fracture, tensile_failure_strain, &
       compressive_failure_strain, shear_failure_strain, fracture_energy, crushing_energy, &
-      shear_fracture_energy
+      shear_fracture_energy, softening
     name = ''; e = unset_real; nu = unset_real; density = unset_real
     nonlinear = mat%nonlinear; history_depth = mat%history_depth
     fracture = mat%fracture
+    softening = ''
     tensile_strength = unset_real; compressive_strength = unset_real
     shear_strength = unset_real
     tensile_failure_strain = unset_real; compressive_failure_strain = unset_real
@@ -235,6 +237,7 @@ contains
     mat%fracture_energy = fracture_energy
     mat%crushing_energy = crushing_energy
     mat%shear_fracture_energy = shear_fracture_energy
+    mat%softening = lower(softening)
   end subroutine parse_material
 
   !> Check, parse and validate group g (one &material, called label in messages) into mat;
@@ -249,7 +252,7 @@ contains
     character(len=line_len), allocatable :: chunk(:)
     character(len=256) :: iomsg
     character(len=*), parameter :: with = ' with nonlinear = .true. [Pa]'
-    type(key_t) :: keys(16)
+    type(key_t) :: keys(17)
     keys = [key('name', mat%name), key('e', mat%young, need=": Young's modulus [Pa]", &
                                        range='> 0', unit=' [Pa]', shown='E'), &
       key('nu', mat%poisson, need=": Poisson's ratio", range='(-1, 0.5)'), &
@@ -267,7 +270,8 @@ contains
       key('shear_failure_strain', mat%shear_failure_strain), &
       key('fracture_energy', mat%fracture_energy), &
       key('crushing_energy', mat%crushing_energy), &
-      key('shear_fracture_energy', mat%shear_fracture_energy)]
+      key('shear_fracture_energy', mat%shear_fracture_energy), &
+      key('softening', mat%softening, allowed='linear bilinear')]
     call read_group(text, g, keys, label, try_material, chunk, stat, msg)
     if (stat /= 0) return
     call parse_material(chunk, mat, stat, iomsg)
@@ -291,6 +295,15 @@ contains
                'is used only with nonlinear = .true. or fracture = .true.', stat, msg)
     end if
     if (stat == 0) call check_fracture_keys(mat, label, stat, msg)
+    if (stat == 0 .and. len_trim(mat%softening) > 0) then
+      if (mat%fracture) then
+        call check_values(keys, 'softening', label, stat, msg)
+      else
+        call bad(label, 'softening', "'"//trim(mat%softening)//"'", 'is used only with '// &
+                 'fracture = .true.', stat, msg)
+      end if
+    end if
+    if (len_trim(mat%softening) == 0) mat%softening = 'linear'
   end subroutine read_material
 
   integer function try_material(part, iomsg) result(ios)

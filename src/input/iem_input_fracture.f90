@@ -8,7 +8,8 @@ module iem_input_fracture
   use iem_strings, only: rtoa
   use iem_config, only: config_t, material_config_t
   use iem_input_checks, only: bad
-  use iem_fracture_law, only: fracture_law_t, fracture_law, largest_band, crit_shear
+  use iem_fracture_law, only: fracture_law_t, fracture_law, largest_band, crit_shear, &
+                              soft_linear, soft_bilinear
   use iem_spring_constants, only: spring_moduli
   implicit none
   private
@@ -57,7 +58,7 @@ contains
     end if
     if (mat%nonlinear) then
       call bad(label, 'fracture', '.true.', 'cannot yet be combined with nonlinear = .true. '// &
-               '(springs that fail soften linearly from an elastic line; docs/model.md, '// &
+               '(springs that fail soften from an elastic line; docs/model.md, '// &
                '"Fracture")', stat, msg)
       return
     end if
@@ -151,7 +152,7 @@ contains
               mat%shear_failure_strain]
     energy = [mat%fracture_energy, mat%crushing_energy, mat%shear_fracture_energy]
     call fracture_law(mat%young, mat%poisson, plane_strain, lx, ly, strength, strain, energy, &
-                      law, ok, bad_crit)
+                      law, ok, bad_crit, softening_shape(mat))
   end subroutine material_fracture_law
 
   !> Refuse fracture (a material with fracture = .true. or a shape with material = 'crack')
@@ -162,7 +163,7 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     character(len=*), parameter :: why = 'cannot yet be combined with nonlinear springs '// &
-      '(springs that fail soften linearly from an elastic line; docs/model.md, "Fracture"): '
+      '(springs that fail soften from an elastic line; docs/model.md, "Fracture"): '
     integer :: k, nl
     stat = 0
     msg = ''
@@ -183,8 +184,9 @@ contains
   end subroutine check_fracture_scene
 
   !> Refuse a material whose softening branch would snap back on the cells lx x ly (a cell
-  !> wider across the crack band than 2 E Gf / f^2, G for shear), naming the largest cell
-  !> allowed and the smallest energy that would do on these cells.
+  !> wider across the crack band than 2 E Gf / f^2, 1.2 E Gf / f^2 with bilinear softening,
+  !> G for shear), naming the largest cell allowed and the smallest energy that would do on
+  !> these cells.
   subroutine check_fracture_cells(cfg, labels, lx, ly, stat, msg)
     type(config_t), intent(in) :: cfg
     character(len=*), intent(in) :: labels(:)
@@ -207,18 +209,21 @@ contains
         if (i == crit_shear) then
           modulus = 2.0_wp*m(3)
           band = sqrt(lx*ly)
-          rule = '2 G Gf / f^2 with G = E/(2(1 + nu)); the band of a shear crack is '// &
+          rule = ' G Gf / f^2 with G = E/(2(1 + nu)); the band of a shear crack is '// &
                  'sqrt(lx ly)'
         else
           modulus = law%phi1*m(1)
           band = max(lx, ly)
-          rule = '2 E Gf / f^2'
+          rule = ' E Gf / f^2'
           if (plane_strain) rule = rule//' with E/(1 - nu^2) for E in plane strain'
         end if
+        ! 2 for linear softening, 1.2 for bilinear (its knee must lie beyond the onset)
+        rule = trim(merge('2.0', '1.2', softening_shape(mat) == soft_linear))//rule// &
+               ', '//trim(mat%softening)//' softening'
         gf = [mat%fracture_energy, mat%crushing_energy, mat%shear_fracture_energy]
-        h = largest_band(modulus, law%onset(i), gf(i))
-        ! the energy whose end strain equals the onset on these cells
-        gmin = 0.5_wp*modulus*law%onset(i)**2*band
+        h = largest_band(modulus, law%onset(i), gf(i), softening_shape(mat))
+        ! the energy whose band of these cells would just not snap back
+        gmin = gf(i)*band/h
         call bad(trim(labels(k)), trim(energy_key(i)), rtoa(gf(i)), 'is too small for '// &
                  'cells of '//rtoa(lx)//' x '//rtoa(ly)//' m: the softening branch would '// &
                  'snap back; cells must be smaller than '//rtoa(h)//' m across the crack '// &
@@ -228,4 +233,11 @@ contains
       end associate
     end do
   end subroutine check_fracture_cells
+
+  !> The softening shape of material mat (iem_fracture_law's soft_linear, soft_bilinear).
+  pure integer function softening_shape(mat) result(shape)
+    type(material_config_t), intent(in) :: mat
+    shape = soft_linear
+    if (mat%softening == 'bilinear') shape = soft_bilinear
+  end function softening_shape
 end module iem_input_fracture

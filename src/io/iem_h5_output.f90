@@ -67,6 +67,7 @@ module iem_h5_output
     procedure :: define_spring_probes => h5_output_define_spring_probes
     procedure :: write_spring_history => h5_output_write_spring_history
     procedure :: write_cell_field => h5_output_write_cell_field
+    procedure :: write_failed_springs => h5_output_write_failed_springs
     procedure :: reopen => h5_output_reopen
     procedure :: set_owned => h5_output_set_owned
     procedure :: record_continuation => h5_output_record_continuation
@@ -179,6 +180,20 @@ module iem_h5_output
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
     end subroutine h5_output_write_cell_field
+
+    !> Writes the group /frames/<last frame>/failed_springs: datasets cell (int64), spring,
+    !> kind (int32, from kinds) and time (float64) of one length, the entries of every rank
+    !> (each passes its own equal-sized arrays, in any order) sorted by (cell, spring), so the
+    !> same bytes on any number of ranks; empty lists make zero-length datasets. Collective,
+    !> after write_frame; rank 0 gathers and writes the entries.
+    module subroutine h5_output_write_failed_springs(this, cell, spring, kinds, time, stat, msg)
+      class(h5_output_t), intent(inout) :: this
+      integer(i8), intent(in) :: cell(:)
+      integer, intent(in) :: spring(:), kinds(:)
+      real(wp), intent(in) :: time(:)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine h5_output_write_failed_springs
 
     !> Reopens the output of an interrupted dynamic run to append to it: keeps its first
     !> n_samples history samples and n_frames frames (later ones, written after the checkpoint

@@ -1,14 +1,19 @@
-!> /frames: one group of node fields (displacement, velocity) and cell fields a
-!> frame, and the series /frames/time and /frames/step; the sidecar lists what each frame holds.
+!> /frames: one group of node fields (displacement, velocity), cell fields and the list of
+!> failed springs a frame, and the series /frames/time and /frames/step; the sidecar lists
+!> what each frame holds.
 submodule (iem_h5_output) iem_h5_output_frames
+  use mpi_f08, only: MPI_Allgather, MPI_Gatherv, MPI_INTEGER, MPI_INTEGER8
+  use iem_kinds, only: mpi_wp
   use iem_strings, only: itoa
   use iem_xdmf, only: xdmf_frame_name, xdmf_field_bit, xdmf_xyz_suffix
   use hdf5, only: HSIZE_T, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5gcreate_f, h5gopen_f, h5gclose_f, &
     h5dcreate_f, h5dwrite_f, h5dclose_f, h5screate_simple_f, h5scopy_f, h5sselect_none_f, &
-    H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, h5pcreate_f, h5pclose_f, H5P_DATASET_CREATE_F, &
+    H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, H5T_STD_I64LE, H5T_STD_I32LE, H5T_NATIVE_INTEGER, &
+    h5pcreate_f, h5pclose_f, H5P_DATASET_CREATE_F, &
     h5pset_fill_value_f, h5pset_virtual_f, h5sselect_hyperslab_f, H5S_SELECT_SET_F, h5sclose_f
   use iem_h5_primitives, only: failed, put_attr, prepare_append, select_runs, make_mem_space, &
     close_space, one
+  use, intrinsic :: iso_c_binding, only: c_ptr, c_loc
   implicit none
 
 contains
@@ -242,5 +247,184 @@ contains
       ior(this%frame_fields(this%n_frames), xdmf_field_bit(name))
     call write_sidecar(this, stat, msg)
   end procedure h5_output_write_cell_field
+
+  !> Documented at its interface in iem_h5_output.f90.
+  module procedure h5_output_write_failed_springs
+    ! Rank 0 gathers the entries as keys cell*8 + spring (unique, in (cell, spring) order),
+    ! kinds and times, sorts them and writes them; the other ranks select nothing.
+    integer, parameter :: springs = 8
+    character(len=:), allocatable :: frame, where
+    integer(i8), allocatable :: key(:), all_key(:)
+    integer(i8), allocatable, target :: out_cell(:)
+    integer, allocatable :: counts(:), displs(:), all_kind(:), order(:)
+    integer, allocatable, target :: out_spring(:), out_kind(:)
+    real(wp), allocatable :: all_time(:)
+    real(wp), allocatable, target :: out_time(:)
+    integer(HID_T) :: frame_id, gid
+    integer :: n_mine, n, n_out, k, r, ierr
+    logical :: shapes_ok
+
+    stat = 0
+    msg = ''
+    if (.not. this%is_open .or. this%n_frames == 0) then
+      stat = 1
+      msg = 'iem_h5_output: write_failed_springs needs an open file and a frame'
+      return
+    end if
+    frame = xdmf_frame_name(this%n_frames - 1)
+    where = '/frames/'//frame//'/failed_springs'
+    ! a rank with wrong shapes contributes nothing but takes part; it reports afterwards
+    shapes_ok = size(spring) == size(cell) .and. size(kinds) == size(cell) .and. &
+                size(time) == size(cell)
+    n_mine = 0
+    if (shapes_ok) n_mine = size(cell)
+    allocate (counts(this%n_ranks), displs(this%n_ranks))
+    call MPI_Allgather(n_mine, 1, MPI_INTEGER, counts, 1, MPI_INTEGER, this%comm)
+    displs(1) = 0
+    do r = 2, this%n_ranks
+      displs(r) = displs(r - 1) + counts(r - 1)
+    end do
+    n = sum(counts)
+    n_out = 0
+    if (this%rank == 0) n_out = n
+    allocate (key(max(n_mine, 1)), all_key(max(n_out, 1)), all_kind(max(n_out, 1)), &
+              all_time(max(n_out, 1)))
+    key = 0
+    do k = 1, n_mine
+      key(k) = int(springs, i8)*cell(k) + spring(k)
+    end do
+    all_key = 0
+    all_kind = 0
+    all_time = 0.0_wp
+    call MPI_Gatherv(key, n_mine, MPI_INTEGER8, all_key, counts, displs, MPI_INTEGER8, 0, &
+                     this%comm)
+    call MPI_Gatherv(kinds, n_mine, MPI_INTEGER, all_kind, counts, displs, MPI_INTEGER, 0, &
+                     this%comm)
+    call MPI_Gatherv(time, n_mine, mpi_wp(), all_time, counts, displs, mpi_wp(), 0, this%comm)
+    deallocate (key)
+    allocate (order(max(n_out, 1)), out_cell(max(n_out, 1)), out_spring(max(n_out, 1)), &
+              out_kind(max(n_out, 1)), out_time(max(n_out, 1)))
+    out_cell = 0
+    out_spring = 0
+    out_kind = 0
+    out_time = 0.0_wp
+    if (n_out > 0) then
+      call sort_order(all_key(1:n_out), order(1:n_out))
+      do k = 1, n_out
+        out_cell(k) = all_key(order(k))/springs
+        out_spring(k) = int(modulo(all_key(order(k)), int(springs, i8)))
+        out_kind(k) = all_kind(order(k))
+        out_time(k) = all_time(order(k))
+      end do
+    end if
+    deallocate (all_key, all_kind, all_time, order)
+
+    frame_id = -1
+    gid = -1
+    work: block
+      call h5gopen_f(this%frames_id, frame, frame_id, ierr)
+      if (failed(this%path, ierr, 'h5gopen_f', '/frames/'//frame, stat, msg)) exit work
+      call h5gcreate_f(frame_id, 'failed_springs', gid, ierr)
+      if (failed(this%path, ierr, 'h5gcreate_f', where, stat, msg)) exit work
+      call write_list(this, gid, where, 'cell', H5T_STD_I64LE, this%int_mtype, n, n_out, &
+                      c_loc(out_cell), stat, msg)
+      call write_list(this, gid, where, 'spring', H5T_STD_I32LE, H5T_NATIVE_INTEGER, n, n_out, &
+                      c_loc(out_spring), stat, msg)
+      call write_list(this, gid, where, 'kind', H5T_STD_I32LE, H5T_NATIVE_INTEGER, n, n_out, &
+                      c_loc(out_kind), stat, msg)
+      call write_list(this, gid, where, 'time', H5T_IEEE_F64LE, this%real_mtype, n, n_out, &
+                      c_loc(out_time), stat, msg)
+    end block work
+    if (gid >= 0) then
+      call h5gclose_f(gid, ierr)
+      if (failed(this%path, ierr, 'h5gclose_f', where, stat, msg)) continue
+    end if
+    if (frame_id >= 0) call h5gclose_f(frame_id, ierr)
+    if (stat == 0) then
+      call h5fflush_f(this%file_id, H5F_SCOPE_GLOBAL_F, ierr)
+      if (failed(this%path, ierr, 'h5fflush_f', '/', stat, msg)) continue
+    end if
+    if (.not. shapes_ok .and. stat == 0) then
+      stat = 1
+      msg = 'iem_h5_output: write_failed_springs: cell, spring, kind and time differ in '// &
+            'length; nothing written from this rank to '//where//' in '//this%path
+    end if
+  end procedure h5_output_write_failed_springs
+
+  !> Creates the 1-D dataset `name` (file type ftype) of n entries in group `gid` and, when
+  !> n > 0, writes the n_out entries at buf (memory type mtype; n_out is n on the writing
+  !> rank, 0 on the others, which select nothing). Collective; no-op if stat /= 0.
+  subroutine write_list(this, gid, where, name, ftype, mtype, n, n_out, buf, stat, msg)
+    class(h5_output_t), intent(in) :: this
+    integer(HID_T), intent(in) :: gid, ftype, mtype
+    character(len=*), intent(in) :: where, name
+    integer, intent(in) :: n, n_out
+    type(c_ptr), intent(in) :: buf
+    integer, intent(inout) :: stat
+    character(len=:), allocatable, intent(inout) :: msg
+    integer(HID_T) :: did, fspace, mspace
+    integer :: ierr
+
+    if (stat /= 0) return
+    did = -1
+    fspace = -1
+    mspace = -1
+    work: block
+      call h5screate_simple_f(1, [int(n, HSIZE_T)], fspace, ierr)
+      if (failed(this%path, ierr, 'h5screate_simple_f', where//'/'//name, stat, msg)) exit work
+      call h5dcreate_f(gid, name, ftype, fspace, did, ierr, this%dcpl_id)
+      if (failed(this%path, ierr, 'h5dcreate_f', where//'/'//name, stat, msg)) exit work
+      if (n == 0) exit work
+      if (n_out == 0) then
+        call h5sselect_none_f(fspace, ierr)
+        if (failed(this%path, ierr, 'h5sselect_none_f', where//'/'//name, stat, msg)) exit work
+      end if
+      call make_mem_space(this%path, 0, int(n_out, i8), where//'/'//name, mspace, stat, msg)
+      if (stat /= 0) exit work
+      call h5dwrite_f(did, mtype, buf, ierr, mspace, fspace, this%xfer_id)
+      if (failed(this%path, ierr, 'h5dwrite_f', where//'/'//name, stat, msg)) exit work
+    end block work
+    if (did >= 0) then
+      call h5dclose_f(did, ierr)
+      if (failed(this%path, ierr, 'h5dclose_f', where//'/'//name, stat, msg)) continue
+    end if
+    call close_space(this%path, fspace, stat, msg)
+    call close_space(this%path, mspace, stat, msg)
+  end subroutine write_list
+
+  !> order: the permutation that sorts key ascending (a stable merge sort, O(n log n)).
+  pure subroutine sort_order(key, order)
+    integer(i8), intent(in) :: key(:)
+    integer, intent(out) :: order(:)
+    integer, allocatable :: tmp(:)
+    integer :: n, width, lo, mid, hi, i, j, k
+    logical :: take_left
+
+    n = size(key)
+    order = [(i, i = 1, n)]
+    allocate (tmp(n))
+    width = 1
+    do while (width < n)
+      do lo = 1, n, 2*width
+        mid = min(lo + width, n + 1)
+        hi = min(lo + 2*width, n + 1)
+        i = lo
+        j = mid
+        do k = lo, hi - 1
+          take_left = i < mid
+          if (take_left .and. j < hi) take_left = key(order(i)) <= key(order(j))
+          if (take_left) then
+            tmp(k) = order(i)
+            i = i + 1
+          else
+            tmp(k) = order(j)
+            j = j + 1
+          end if
+        end do
+      end do
+      order = tmp
+      width = 2*width
+    end do
+  end subroutine sort_order
 
 end submodule iem_h5_output_frames

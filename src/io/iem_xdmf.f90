@@ -31,11 +31,12 @@ module iem_xdmf
 
   !> Everything a frame or the mesh may hold besides the mesh itself. A new field is one entry
   !> here (at most bit_size(0) entries); the writer sets its bit where it writes it.
-  type(xdmf_field_t), parameter, public :: xdmf_fields(4) = [ &
+  type(xdmf_field_t), parameter, public :: xdmf_fields(5) = [ &
     xdmf_field_t('displacement', .true., 'Node', 2, 'Float', 8), &
     xdmf_field_t('velocity', .true., 'Node', 2, 'Float', 8), &
     xdmf_field_t('nonlinearity', .true., 'Cell', 1, 'Float', 8), &
-    xdmf_field_t('material', .false., 'Cell', 1, 'Int', 4)]
+    xdmf_field_t('material', .false., 'Cell', 1, 'Int', 4), &
+    xdmf_field_t('damage', .true., 'Cell', 1, 'Float', 8)]
 
 contains
 

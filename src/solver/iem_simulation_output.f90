@@ -10,6 +10,7 @@ submodule (iem_simulation) iem_simulation_output
   use iem_build_info, only: iem_version
   use iem_exact_sum, only: exact_sum_t, exact_sum_allreduce
   use iem_lattice_queries, only: node_place
+  use iem_fracture, only: edge_factor, shear_factor, failure_kind, intact_time
   implicit none
 
 contains
@@ -249,7 +250,8 @@ contains
     if (t_prev < 0.0_wp) crossed = .true.
   end procedure crossed
 
-  !> Write a frame of the state at step k (and the cells' degree of nonlinearity).
+  !> Write a frame of the state at step k (and the cells' degree of nonlinearity, or their
+  !> damage and failed springs).
   module procedure write_frame
     character(len=:), allocatable :: msg
     integer :: n
@@ -257,9 +259,65 @@ contains
     ! the sections are copied to contiguous temporaries at output time only
     call this%out%write_frame(k, t, this%st%y(1:2, 1:n), this%st%y(3:4, 1:n), stat, msg)
     this%last_frame_time = t
-    if (stat /= 0 .or. .not. this%model%nonlinear) return
-    call nonlinearity_degree(this)
-    call this%out%write_cell_field('nonlinearity', this%cell_degree, stat, msg)
+    if (stat /= 0) return
+    if (this%model%nonlinear) then
+      call nonlinearity_degree(this)
+      call this%out%write_cell_field('nonlinearity', this%cell_degree, stat, msg)
+      if (stat /= 0) return
+    end if
+    if (this%model%fracture) call write_fracture_fields(this, stat)
   end procedure write_frame
+
+  !> The fracture fields of the frame just written, from the committed fracture state: each
+  !> counted cell's damage (1 - the mean of its 8 effective intact factors: edges fe_q, shear
+  !> springs min(fs_q, fe_q, fe_q-1)) and the springs of the counted cells that failed by
+  !> their own criterion or were pre-cut (global cell, spring 0-7, how, when). Buffers are
+  !> made here, at output time: the list's length is that of the failed springs.
+  subroutine write_fracture_fields(this, stat)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable :: msg
+    real(wp), allocatable :: damage(:), when(:)
+    integer(i8), allocatable :: cell(:)
+    integer, allocatable :: spring(:), how(:)
+    real(wp) :: fe(4), fs(4), s
+    integer :: c, q, j, k, m, mt, nf
+
+    associate(fr => this%model%fr, lat => this%lat)
+      nf = 0
+      do c = 1, lat%n_cells
+        if (lat%cell_counted(c)) nf = nf + count(fr%t_fail(:, c) /= intact_time)
+      end do
+      allocate(damage(lat%n_counted()), cell(nf), spring(nf), how(nf), when(nf))
+      k = 0
+      m = 0
+      mt = 1
+      do c = 1, lat%n_cells
+        if (.not. lat%cell_counted(c)) cycle
+        k = k + 1
+        if (this%model%mixed) mt = lat%cell_mat(c)
+        do q = 1, 4
+          fe(q) = edge_factor(fr%laws(mt), fr%kappa(:, c), q)
+          fs(q) = shear_factor(fr%laws(mt), fr%kappa(:, c), q)
+        end do
+        s = sum(fe)
+        do q = 1, 4
+          s = s + min(fs(q), fe(q), fe(modulo(q - 2, 4) + 1))
+        end do
+        damage(k) = 1.0_wp - s/8.0_wp
+        do j = 1, 8
+          if (fr%t_fail(j, c) == intact_time) cycle
+          m = m + 1
+          cell(m) = lat%cell_gid(c)
+          spring(m) = j - 1
+          how(m) = failure_kind(fr%laws(mt), fr%kappa(:, c), j)
+          when(m) = fr%t_fail(j, c)
+        end do
+      end do
+    end associate
+    call this%out%write_cell_field('damage', damage, stat, msg)
+    if (stat /= 0) return
+    call this%out%write_failed_springs(cell, spring, how, when, stat, msg)
+  end subroutine write_fracture_fields
 
 end submodule iem_simulation_output

@@ -259,6 +259,7 @@ contains
     if (this%static) mc%integrator = 'static'
     mc%nonlinear = any(this%cfg%materials(:)%nonlinear)
     mc%depth = maxval(this%cfg%materials(:)%history_depth)
+    mc%fracture = any(this%cfg%materials(:)%fracture) .or. any(this%cfg%shapes(:)%crack)
     need = memory_estimate(mc)
     call memory_check(this%comm, need, label, stat, msg, info)
     if (stat == 0) call log_info(info)

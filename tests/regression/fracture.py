@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Regression checks of fracture (docs/model.md, "Fracture"), called by CTest.
 
-The case (--case, tests/data/fracture_bar.nml) pulls a bar apart: its left end is held in x,
+The case (--case, tests/data/fracture_bar_pull.nml) pulls a bar apart: its left end is held in x,
 its right end moves at a constant velocity, and one crack opens across it.
 
   grids    at each --nx (ny scaled with it, so the cells keep their shape) the energy
