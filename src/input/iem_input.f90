@@ -13,7 +13,7 @@ module iem_input
   use iem_input_shapes, only: read_shape
   use iem_input_scene, only: resolve_scene, label_len
   use iem_input_image, only: check_image
-  use iem_input_fracture, only: check_fracture_cells
+  use iem_input_fracture, only: check_fracture_cells, check_fracture_scene
   use iem_input_files, only: check_files
   implicit none
   private
@@ -121,6 +121,7 @@ contains
     call resolve_scene(cfg, mat_labels, shape_labels, bc_labels, load_labels, stat, msg)
     if (stat == 0) call check_cross(cfg, stat, msg)
     if (stat == 0) call check_image(cfg, comm, stat, msg)
+    if (stat == 0) call check_fracture_scene(cfg, mat_labels, shape_labels, stat, msg)
     ! the grid is known now (an image sets it): no softening branch may snap back on it
     if (stat == 0 .and. cfg%geometry%nx > 0 .and. cfg%geometry%ny > 0) &
       call check_fracture_cells(cfg, mat_labels, cfg%geometry%length/cfg%geometry%nx, &

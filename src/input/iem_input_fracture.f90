@@ -13,7 +13,7 @@ module iem_input_fracture
   use iem_spring_constants, only: spring_moduli
   implicit none
   private
-  public :: check_fracture_keys, check_fracture_cells, material_fracture_law
+  public :: check_fracture_keys, check_fracture_cells, check_fracture_scene, material_fracture_law
 
   !> Names of each criterion's strength, limit strain and energy, as the input writes them.
   character(len=*), parameter :: strength_key(3) = [character(len=26) :: 'tensile_strength', &
@@ -58,7 +58,7 @@ contains
     end if
     if (mat%nonlinear) then
       call bad(label, 'fracture', '.true.', 'cannot yet be combined with nonlinear = .true. '// &
-               '(springs that fail soften linearly from an elastic line; docs/model.md, '// &
+               '(springs that fail soften from an elastic line; docs/model.md, '// &
                '"Fracture")', stat, msg)
       return
     end if
@@ -80,11 +80,13 @@ contains
       if (v(1, i) == unset_real .and. v(2, i) == unset_real) then
         if (i == 1) then
           call bad(label, 'tensile_strength', '(not given)', 'is required with fracture = '// &
-                   '.true. (or tensile_failure_strain) [Pa]', stat, msg)
+                   '.true.: the stress at which springs begin to crack [Pa] (or give '// &
+                   'tensile_failure_strain, the strain at which they do)', stat, msg)
           return
         else if (v(3, i) /= unset_real) then
           call bad(label, trim(energy_key(i)), rtoa(v(3, i)), 'needs '// &
-                   trim(strength_key(i))//' or '//trim(strain_key(i)), stat, msg)
+                   trim(strength_key(i))//' or '//trim(strain_key(i))//' (the '// &
+                   'criterion it belongs to is on only when one of them is given)', stat, msg)
           return
         end if
       else if (v(3, i) == unset_real) then
@@ -153,8 +155,38 @@ contains
                       law, ok, bad_crit, softening_shape(mat))
   end subroutine material_fracture_law
 
+  !> Refuse fracture (a material with fracture = .true. or a shape with material = 'crack')
+  !> in a body that also has nonlinear springs: the force kernel has one or the other.
+  subroutine check_fracture_scene(cfg, mat_labels, shape_labels, stat, msg)
+    type(config_t), intent(in) :: cfg
+    character(len=*), intent(in) :: mat_labels(:), shape_labels(:)
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    character(len=*), parameter :: why = 'cannot yet be combined with nonlinear springs '// &
+      '(springs that fail soften from an elastic line; docs/model.md, "Fracture"): '
+    integer :: k, nl
+    stat = 0
+    msg = ''
+    nl = findloc(cfg%materials(:)%nonlinear, .true., dim=1)
+    if (nl == 0) return
+    do k = 1, size(cfg%materials)
+      if (.not. cfg%materials(k)%fracture) cycle
+      call bad(trim(mat_labels(k)), 'fracture', '.true.', why//trim(mat_labels(nl))// &
+               ' has nonlinear = .true.', stat, msg)
+      return
+    end do
+    do k = 1, size(cfg%shapes)
+      if (.not. cfg%shapes(k)%crack) cycle
+      call bad(trim(shape_labels(k)), 'material', "'crack'", why//trim(mat_labels(nl))// &
+               ' has nonlinear = .true.', stat, msg)
+      return
+    end do
+  end subroutine check_fracture_scene
+
   !> Refuse a material whose softening branch would snap back on the cells lx x ly (a cell
-  !> wider than 2 E Gf / f^2 across the crack band), naming the largest cell allowed.
+  !> wider across the crack band than 2 E Gf / f^2, 1.2 E Gf / f^2 with bilinear softening,
+  !> G for shear), naming the largest cell allowed and the smallest energy that would do on
+  !> these cells.
   subroutine check_fracture_cells(cfg, labels, lx, ly, stat, msg)
     type(config_t), intent(in) :: cfg
     character(len=*), intent(in) :: labels(:)
@@ -162,26 +194,41 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     type(fracture_law_t) :: law
-    logical :: ok
+    logical :: ok, plane_strain
     integer :: k, i
-    real(wp) :: m(3), modulus, h, gf(3)
+    real(wp) :: m(3), modulus, h, gf(3), band, gmin
+    character(len=:), allocatable :: rule
     stat = 0
     msg = ''
+    plane_strain = cfg%geometry%plane == 'strain'
     do k = 1, size(cfg%materials)
       associate(mat => cfg%materials(k))
-        call material_fracture_law(mat, cfg%geometry%plane == 'strain', lx, ly, law, ok, i)
+        call material_fracture_law(mat, plane_strain, lx, ly, law, ok, i)
         if (ok) cycle
-        m = spring_moduli(mat%young, mat%poisson, cfg%geometry%plane == 'strain')
-        modulus = law%phi1*m(1)
-        if (i == crit_shear) modulus = 2.0_wp*m(3)
+        m = spring_moduli(mat%young, mat%poisson, plane_strain)
+        if (i == crit_shear) then
+          modulus = 2.0_wp*m(3)
+          band = sqrt(lx*ly)
+          rule = ' G Gf / f^2 with G = E/(2(1 + nu)); the band of a shear crack is '// &
+                 'sqrt(lx ly)'
+        else
+          modulus = law%phi1*m(1)
+          band = max(lx, ly)
+          rule = ' E Gf / f^2'
+          if (plane_strain) rule = rule//' with E/(1 - nu^2) for E in plane strain'
+        end if
+        ! 2 for linear softening, 1.2 for bilinear (its knee must lie beyond the onset)
+        rule = trim(merge('2.0', '1.2', softening_shape(mat) == soft_linear))//rule// &
+               ', '//trim(mat%softening)//' softening'
         gf = [mat%fracture_energy, mat%crushing_energy, mat%shear_fracture_energy]
         h = largest_band(modulus, law%onset(i), gf(i), softening_shape(mat))
+        ! the energy whose band of these cells would just not snap back
+        gmin = gf(i)*band/h
         call bad(trim(labels(k)), trim(energy_key(i)), rtoa(gf(i)), 'is too small for '// &
                  'cells of '//rtoa(lx)//' x '//rtoa(ly)//' m: the softening branch would '// &
-                 'snap back; cells (across the crack band) must be smaller than '//rtoa(h)// &
-                 ' m ('//trim(merge('2.0', '1.2', softening_shape(mat) == soft_linear))// &
-                 ' E Gf / f^2 with '//trim(mat%softening)//' softening), or the energy '// &
-                 'larger', stat, msg)
+                 'snap back; cells must be smaller than '//rtoa(h)//' m across the crack '// &
+                 'band ('//rule//'): refine the grid, or give '//trim(energy_key(i))// &
+                 ' > '//rtoa(gmin)//' J/m^2', stat, msg)
         return
       end associate
     end do
