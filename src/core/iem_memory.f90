@@ -29,7 +29,7 @@ module iem_memory
   !> maps and the bisection's points (about 32).
   real(wp), parameter, public :: decomp_cell_bytes = 8.0_wp, decomp_node_bytes = 40.0_wp
   !> Fracture state of a cell (iem_fracture's fracture_t).
-  real(wp), parameter :: fracture_cell_bytes = 172.0_wp
+  real(wp), parameter :: fracture_cell_bytes = 236.0_wp
   !> Nonlinear springs: 12 a cell, each 48 bytes plus 16 a reversal point of its history.
   integer, parameter :: springs_per_cell = 12
 
@@ -86,7 +86,7 @@ contains
     per_node = lattice_node_bytes + model_node_bytes + state + lattice_cell_bytes*cells_per_node
     spring = 0.0_wp
     if (mc%nonlinear) spring = springs_per_cell*(48.0_wp + 16.0_wp*mc%depth) + 8.0_wp
-    ! fracture: 12 largest strains, 8 failure times, the dissipation and a flag a cell
+    ! fracture: 12 largest strains, 8 failure times, the dissipation, 8 last strains, a flag
     if (mc%fracture) spring = spring + fracture_cell_bytes
     per_node = per_node + spring*cells_per_node
     ! a checkpoint (dynamic runs: at its interval or on a signal) copies the checkpointed
@@ -100,7 +100,7 @@ contains
       ckpt = 2.0_wp*8.0_wp*(2.0_wp*ns - 2.0_wp) + 12.0_wp + 8.0_wp*cells_per_node
       if (mc%nonlinear) ckpt = ckpt + &
         2.0_wp*8.0_wp*springs_per_cell*(7.0_wp + 2.0_wp*mc%depth)*cells_per_node
-      if (mc%fracture) ckpt = ckpt + 2.0_wp*8.0_wp*21.0_wp*cells_per_node
+      if (mc%fracture) ckpt = ckpt + 2.0_wp*8.0_wp*29.0_wp*cells_per_node
     end if
     per_node = per_node + max(frame_node_bytes, ckpt)
     need%run_per_node = per_node

@@ -37,6 +37,9 @@ module iem_fracture
     real(wp), allocatable :: t_fail(:, :)
     !> Energy each cell's damage has dissipated (J), summed at accepted states.
     real(wp), allocatable :: diss(:)
+    !> e_prev(1:4, c): edge strains, (5:8): shear measures of the cell's last accepted state,
+    !> kept once its damage has begun (the start of the next step's strain path).
+    real(wp), allocatable :: e_prev(:, :)
     !> Whether the cell's damage has begun (derived from kappa: see refresh).
     logical, allocatable :: hit(:)
   contains
@@ -62,12 +65,13 @@ contains
       this%onset_min(i) = minval(laws(:)%onset(i))
     end do
     allocate(this%kappa(12, n_cells), this%t_fail(8, n_cells), this%diss(n_cells), &
-             this%hit(n_cells), stat=ierr)
-    call guard%note(ierr, 'the fracture state of the rank', 172.0_wp*n_cells)
+             this%e_prev(8, n_cells), this%hit(n_cells), stat=ierr)
+    call guard%note(ierr, 'the fracture state of the rank', 236.0_wp*n_cells)
     if (guard%failed) return
     this%kappa = 0.0_wp
     this%t_fail = intact_time
     this%diss = 0.0_wp
+    this%e_prev = 0.0_wp
     this%hit = .false.
   end subroutine fracture_init
 
@@ -118,6 +122,7 @@ contains
     if (allocated(this%kappa)) deallocate(this%kappa)
     if (allocated(this%t_fail)) deallocate(this%t_fail)
     if (allocated(this%diss)) deallocate(this%diss)
+    if (allocated(this%e_prev)) deallocate(this%e_prev)
     if (allocated(this%hit)) deallocate(this%hit)
   end subroutine fracture_free
 

@@ -19,8 +19,9 @@ contains
   !> shear measures s(:, 4) whose elastic g, t and en are given: the damaged cells (dmg, n_dmg
   !> of them) get their intact edge factors fe and shear factors fs at the trial history
   !> (largest strains so far and now) and their g, t, en from damaged_cell. With accept the
-  !> state is accepted at time: the history moves to it, the energy the new damage releases at
-  !> this strain is added to the cell's dissipation, and springs whose factor reached 0 get
+  !> state is accepted at time: the history moves to it, the energy the new damage releases
+  !> along the step (released_energy) is added to the cell's dissipation, and springs whose
+  !> factor reached 0 get
   !> their failure time. k: the constants (of every cell, or ks(mat(c)) with several
   !> materials).
   pure subroutine fracture_chunk(fr, c_first, m, k, ep, s, accept, time, g, t, en, fe, fs, &
@@ -37,7 +38,7 @@ contains
     integer, intent(out) :: n_dmg
     type(cell_constants_t), intent(in), optional :: ks(:)
     integer, intent(in), optional :: mat(:)
-    real(wp) :: kap(12), knew(12), fo(4), so(4), go(4), to(4), e_hi, e_lo, s_hi
+    real(wp) :: kap(12), knew(12), e_hi, e_lo, s_hi
     integer :: c, q, cell, mc
 
     n_dmg = 0
@@ -80,17 +81,16 @@ contains
         end if
         en(c) = 0.5_wp*sum(g(c, :)*ep(c, :) + t(c, :)*s(c, :))
         if (.not. accept) cycle
-        ! the energy this strain held with the committed factors, less what it holds now
-        do q = 1, 4
-          fo(q) = edge_factor(lw, kap, q)
-          so(q) = shear_factor(lw, kap, q)
-        end do
+        ! the energy the new damage releases along the step's strain path
         if (present(ks)) then
-          call damaged_cell(ks(mc), ep(c, :), s(c, :), fo, so, go, to)
+          call released_energy(ks(mc), lw, kap, fr%e_prev(:, cell), fr%hit(cell), ep(c, :), &
+                               s(c, :), fr%diss(cell))
         else
-          call damaged_cell(k, ep(c, :), s(c, :), fo, so, go, to)
+          call released_energy(k, lw, kap, fr%e_prev(:, cell), fr%hit(cell), ep(c, :), &
+                               s(c, :), fr%diss(cell))
         end if
-        fr%diss(cell) = fr%diss(cell) + (0.5_wp*sum(go*ep(c, :) + to*s(c, :)) - en(c))
+        fr%e_prev(1:4, cell) = ep(c, :)
+        fr%e_prev(5:8, cell) = s(c, :)
         fr%kappa(:, cell) = knew
         fr%hit(cell) = .true.
         do q = 1, 4
@@ -102,6 +102,80 @@ contains
       end associate
     end do
   end subroutine fracture_chunk
+
+  !> Add to diss the energy a cell of constants k and law lw releases by damage between its
+  !> committed state (strain history kap, strains e_old = (ep, s) of its last accepted state
+  !> when hit, else unknown) and the accepted strains ep, s: along the straight strain path
+  !> between them, in pieces halved until the intact factors change by at most 0.001 in each
+  !> and nearly linearly (a piece's midpoint within 1e-4 of the mean of its ends), each
+  !> piece releases its factors' drop times the undamaged energy of the terms at the
+  !> piece's middle (the midpoint rule; one piece in a step of a dynamic run). A cell not
+  !> hit before starts its path where its first criterion reached its onset on the way to
+  !> the new strains (proportional loading from there).
+  pure subroutine released_energy(k, lw, kap, e_old, hit, ep, s, diss)
+    type(cell_constants_t), intent(in) :: k
+    type(fracture_law_t), intent(in) :: lw
+    real(wp), intent(in) :: kap(12), e_old(8), ep(4), s(4)
+    logical, intent(in) :: hit
+    real(wp), intent(inout) :: diss
+    real(wp) :: e0(8), e1(8), em(8), lam, fa(8), fb(8), fm(8), g(4), t(4), ea, eb, sa, sb, ds
+    integer :: q
+    e1(1:4) = ep
+    e1(5:8) = s
+    if (hit) then
+      e0 = e_old
+    else
+      lam = 0.0_wp
+      do q = 1, 4
+        lam = max(lam, ep(q)/lw%onset(crit_tension), -ep(q)/lw%onset(crit_crushing), &
+                  abs(s(q))/lw%onset(crit_shear))
+      end do
+      e0 = e1/max(lam, 1.0_wp)
+    end if
+    fa = factors_at(e0)
+    fb = factors_at(e1)
+    if (all(fa == fb)) return
+    ! pieces [sa, sb] of the path, each halved until its factors change by at most 0.01
+    sa = 0.0_wp
+    ds = 1.0_wp
+    do while (sa < 1.0_wp)
+      ds = min(2.0_wp*ds, 1.0_wp - sa)
+      do
+        sb = sa + ds
+        if (sb >= 1.0_wp) sb = 1.0_wp
+        fb = factors_at(e0 + sb*(e1 - e0))
+        fm = factors_at(e0 + (0.5_wp*(sa + sb))*(e1 - e0))
+        ! small drops, nearly linear along the piece (no end of softening inside it)
+        if ((maxval(abs(fa - fb)) <= 1.0e-3_wp .and. maxval(abs(2.0_wp*fm - fa - fb)) <= &
+             2.0e-4_wp) .or. ds < 1.0e-7_wp) exit
+        ds = 0.5_wp*ds
+      end do
+      em = e0 + (0.5_wp*(sa + sb))*(e1 - e0)
+      call damaged_cell(k, em(1:4), em(5:8), fa(1:4), fa(5:8), g, t)
+      ea = 0.5_wp*(sum(g*em(1:4)) + sum(t*em(5:8)))
+      call damaged_cell(k, em(1:4), em(5:8), fb(1:4), fb(5:8), g, t)
+      eb = 0.5_wp*(sum(g*em(1:4)) + sum(t*em(5:8)))
+      diss = diss + (ea - eb)
+      fa = fb
+      sa = sb
+    end do
+
+  contains
+
+    !> The edge and shear factors at strains e on the path (history: kap and the path so far).
+    pure function factors_at(e) result(f)
+      real(wp), intent(in) :: e(8)
+      real(wp) :: f(8), k_s(12)
+      integer :: j
+      k_s(1:4) = max(kap(1:4), e(1:4))
+      k_s(5:8) = max(kap(5:8), -e(1:4))
+      k_s(9:12) = max(kap(9:12), abs(e(5:8)))
+      do j = 1, 4
+        f(j) = edge_factor(lw, k_s, j)
+        f(4 + j) = shear_factor(lw, k_s, j)
+      end do
+    end function factors_at
+  end subroutine released_energy
 
   !> The damaged cell law of one cell: generalised stresses g(4) (edges) and t(4) (corners)
   !> for edge strains ep(4) and shear measures s(4) (or their rates), with intact factors

@@ -77,6 +77,7 @@ contains
       call real_field('fracture_kappa', centre_cell, 12, this%model%fr%kappa, .true.)
       call real_field('fracture_time', centre_cell, 8, this%model%fr%t_fail, .true.)
       call real_field('fracture_energy', centre_cell, 1, this%model%fr%diss, .true.)
+      call real_field('fracture_strain', centre_cell, 8, this%model%fr%e_prev, .true.)
     end if
 
   contains
