@@ -83,6 +83,7 @@ module iem_model
     procedure :: prescribe => model_prescribe
     procedure :: add_work => model_add_work
     procedure :: energy_sums => model_energy_sums
+    procedure :: reaction_sums => model_reaction_sums
   end type model_t
 
 contains
@@ -519,5 +520,31 @@ contains
       end do
     end if
   end subroutine model_energy_sums
+
+  !> Add the reactions of this rank's prescribed dofs at the last rate evaluation (state y,
+  !> time t) to sums(2*(s - 1) + comp), s = series(b) of the dof's &bc b, exactly: the force
+  !> R = m (a + alpha v) + f_int - f_ext the support exerts on the body (inertia = .false.,
+  !> static runs: f_int - f_ext); a released condition exerts none.
+  subroutine model_reaction_sums(this, y, t, series, inertia, sums)
+    class(model_t), intent(in) :: this
+    real(wp), intent(in) :: y(:, :)
+    real(wp), intent(in) :: t
+    integer, intent(in) :: series(:)
+    logical, intent(in) :: inertia
+    type(exact_sum_t), intent(inout) :: sums(:)
+    integer :: n, l, comp, b
+    real(wp) :: r
+    do n = 1, size(this%bc_node)
+      l = this%bc_node(n)
+      comp = this%bc_comp(n)
+      b = this%bc_id(n)
+      if (t >= this%bc_release(b)) cycle
+      r = this%f(comp, l)
+      if (inertia) r = this%mass(l)*(this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t) + &
+                       this%alpha*y(2 + comp, l)) + r
+      if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
+      call sums(2*(series(b) - 1) + comp)%add(r)
+    end do
+  end subroutine model_reaction_sums
 
 end module iem_model
