@@ -2,7 +2,7 @@
 """Regression checks of /history/reactions and /history/fracture (docs/output.md), called by
 CTest (tests/CMakeLists.txt). Subcommands:
 
-  bar        the bar pulled apart (tests/data/fracture_bar.nml) on several rank counts: the
+  bar        the bar pulled apart (tests/data/fracture_bar_history.nml) on several rank counts: the
              reactions, events and fragments bitwise the same; the pull reaction peaks at the
              tensile strength times the section; the bar ends in two fragments; the events
              are tension failures in canonical order; a pre-cut column is logged once at
