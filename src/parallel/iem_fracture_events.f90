@@ -7,12 +7,10 @@ module iem_fracture_events
   use mpi_f08, only: MPI_Comm, MPI_Comm_rank, MPI_Comm_size, MPI_Gather, MPI_Gatherv
   use iem_kinds, only: wp, ip, i8, mpi_wp, mpi_i8, mpi_ip
   use iem_local_lattice, only: local_lattice_t
-  use iem_fracture, only: fracture_t, precut_kappa, fail_tension, fail_crushing, fail_shear, &
-                          fail_precut
-  use iem_fracture_law, only: fracture_law_t, softening_factor, crit_tension
+  use iem_fracture, only: fracture_t, failure_kind
   implicit none
   private
-  public :: fracture_events_t, failure_kind
+  public :: fracture_events_t
 
   !> The failures of a run between two writes of its history.
   type :: fracture_events_t
@@ -34,28 +32,6 @@ module iem_fracture_events
   end type fracture_events_t
 
 contains
-
-  !> How spring q (1-4 edges, 5-8 shear springs) of a failed cell of law lw and strain
-  !> history kap(12) failed: fail_precut, fail_tension (its tension factor is 0),
-  !> fail_crushing (otherwise, for an edge) or fail_shear.
-  pure integer function failure_kind(lw, kap, q) result(kind)
-    type(fracture_law_t), intent(in) :: lw
-    real(wp), intent(in) :: kap(12)
-    integer, intent(in) :: q
-    integer :: d
-    if (q > 4) then
-      kind = fail_shear
-    else if (kap(q) == precut_kappa) then
-      kind = fail_precut
-    else
-      kind = fail_crushing
-      d = 2 - mod(q, 2)
-      if (kap(q) > lw%onset(crit_tension)) then
-        if (softening_factor(kap(q), lw%onset(crit_tension), lw%final(d, crit_tension), lw%r, &
-                             lw%phi1) == 0.0_wp) kind = fail_tension
-      end if
-    end if
-  end function failure_kind
 
   !> Allocate the lists (on every rank: the buffer's arrays are passed to the writer by all).
   subroutine events_init(this)
