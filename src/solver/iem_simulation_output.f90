@@ -1,5 +1,6 @@
 !> Output recording of a run: the output file's creation, history samples (energies,
-!> probes, spring probes, reactions, fracture events and fragments) gathered into the buffer and flushed to the file, and frames.
+!> probes, spring probes, reactions, fracture events and fragments) gathered into the
+!> buffer and flushed to the file, and frames.
 submodule (iem_simulation) iem_simulation_output
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_SUM

@@ -110,7 +110,8 @@ def cmd_bar(args: argparse.Namespace) -> None:
     rg.check(bool(np.all(order == np.arange(len(t)))), "events sorted by (time, cell, spring)")
     keys = cell.astype(np.int64) * 8 + spring
     rg.check(len(np.unique(keys)) == len(keys), "each spring fails once")
-    rg.check(bool(np.all((spring >= 0) & (spring <= 7))) and bool(np.all((t > 0) & (t <= time[-1]))),
+    rg.check(bool(np.all((spring >= 0) & (spring <= 7))) and
+             bool(np.all((t > 0) & (t <= time[-1]))),
              "events: springs 0-7, times within the run")
     # the count changes only at samples that logged failures (since the previous sample)
     changed = np.flatnonzero(np.diff(frag)) + 1
