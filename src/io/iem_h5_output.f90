@@ -17,6 +17,10 @@ module iem_h5_output
   !> could not be written by rank 0; the HDF5 file is fine.
   integer, parameter, public :: h5_output_sidecar_error = 2
 
+  !> Series of /history/fracture/events (time, x, y, kind, cell, spring), and the fragment
+  !> sizes in /history/fracture/largest_fragments.
+  integer, parameter, public :: n_event_series = 6, n_largest_fragments = 5
+
   !> Whether this module has opened the HDF5 library (h5open_f) and not closed it yet.
   logical :: library_open = .false.
 
@@ -56,6 +60,17 @@ module iem_h5_output
     integer(HID_T), allocatable :: spring_e_id(:), spring_s_id(:)
     character(len=:), allocatable :: spring_path(:)
     integer(i8) :: n_spring_samples = 0
+    !> /history/reactions/<name>, (2, samples) each, and their paths; samples written of
+    !> them and of the fragment series.
+    integer(HID_T), allocatable :: reaction_id(:)
+    character(len=:), allocatable :: reaction_path(:)
+    integer(i8) :: n_series_samples = 0
+    !> Whether the file has /history/fracture: its event series, fragments and
+    !> largest_fragments, and the events written.
+    logical :: fracture = .false.
+    integer(HID_T) :: event_id(n_event_series) = -1
+    integer(HID_T) :: fragments_id = -1, largest_id = -1
+    integer(i8) :: n_events = 0
     !> Contiguous runs of this rank's cells (from write_mesh), for cell fields of frames.
     integer(i8), allocatable :: cell_start(:), cell_len(:)
   contains
@@ -68,6 +83,11 @@ module iem_h5_output
     procedure :: write_spring_history => h5_output_write_spring_history
     procedure :: write_cell_field => h5_output_write_cell_field
     procedure :: write_failed_springs => h5_output_write_failed_springs
+    procedure :: define_reactions => h5_output_define_reactions
+    procedure :: define_fracture_history => h5_output_define_fracture_history
+    procedure :: write_series => h5_output_write_series
+    procedure :: write_events => h5_output_write_events
+    procedure :: reopen_series => h5_output_reopen_series
     procedure :: reopen => h5_output_reopen
     procedure :: set_owned => h5_output_set_owned
     procedure :: record_continuation => h5_output_record_continuation
@@ -242,6 +262,65 @@ module iem_h5_output
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
     end subroutine h5_output_close
+
+    ! /history/reactions and /history/fracture (iem_h5_output_series)
+    !> Creates /history/reactions/<name>, (2, samples) float64 each (the force of the
+    !> prescribed dofs of one or more &bc, x and y), with the attribute bcs (those &bc, 1-based,
+    !> as text); collective, the same arguments on every rank, after create.
+    module subroutine h5_output_define_reactions(this, names, bcs, stat, msg)
+      class(h5_output_t), intent(inout) :: this
+      character(len=*), intent(in) :: names(:), bcs(:)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine h5_output_define_reactions
+
+    !> Creates /history/fracture: events/time, x, y (float64), kind (int32), cell (int64),
+    !> spring (int32), one entry a failure, and fragments (samples) and largest_fragments
+    !> (n_largest_fragments, samples) int64; collective, after create.
+    module subroutine h5_output_define_fracture_history(this, stat, msg)
+      class(h5_output_t), intent(inout) :: this
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine h5_output_define_fracture_history
+
+    !> Appends n samples of the reactions (2, n_series, n) and, in a file with
+    !> /history/fracture (and only then), of fragments(n) and largest(n_largest_fragments, n);
+    !> the same on every rank (rank 0 writes); collective.
+    module subroutine h5_output_write_series(this, n, reactions, stat, msg, fragments, largest)
+      class(h5_output_t), intent(inout) :: this
+      integer, intent(in) :: n
+      real(wp), intent(in) :: reactions(:, :, :)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+      integer(i8), intent(in), optional :: fragments(:), largest(:, :)
+    end subroutine h5_output_write_series
+
+    !> Appends n fracture events to /history/fracture/events (n the same on every rank; the
+    !> events are read on rank 0 only, the other ranks' arrays may be empty but allocated);
+    !> collective. Nothing in a file without /history/fracture.
+    module subroutine h5_output_write_events(this, n, time, x, y, kind, cell, spring, stat, msg)
+      class(h5_output_t), intent(inout) :: this
+      integer, intent(in) :: n
+      real(wp), intent(in) :: time(:), x(:), y(:)
+      integer, intent(in) :: kind(:), spring(:)
+      integer(i8), intent(in) :: cell(:)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine h5_output_write_events
+
+    !> After reopen: opens /history/reactions/<names> and, with fracture, /history/fracture,
+    !> cut to the n_samples samples kept and to the events up to time t_last (that of the
+    !> last sample kept); collective.
+    module subroutine h5_output_reopen_series(this, names, fracture, n_samples, t_last, stat, &
+        msg)
+      class(h5_output_t), intent(inout) :: this
+      character(len=*), intent(in) :: names(:)
+      logical, intent(in) :: fracture
+      integer(i8), intent(in) :: n_samples
+      real(wp), intent(in) :: t_last
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine h5_output_reopen_series
 
     ! used by more than one submodule
     !> Opens the HDF5 library if needed, sets the memory types, and makes the file access list

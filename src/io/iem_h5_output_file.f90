@@ -378,6 +378,19 @@ contains
       end do
       deallocate(this%spring_e_id, this%spring_s_id)
     end if
+    if (allocated(this%reaction_id)) then
+      do k = 1, size(this%reaction_id)
+        call close_dset(this%path, this%reaction_id(k), trim(this%reaction_path(k)), stat, msg)
+      end do
+      deallocate(this%reaction_id)
+    end if
+    do k = 1, n_event_series
+      call close_dset(this%path, this%event_id(k), '/history/fracture/events', stat, msg)
+    end do
+    call close_dset(this%path, this%fragments_id, '/history/fracture/fragments', stat, msg)
+    call close_dset(this%path, this%largest_id, '/history/fracture/largest_fragments', stat, &
+      msg)
+    this%fracture = .false.
     if (this%frames_id >= 0) then
       call h5gclose_f(this%frames_id, ierr)
       this%frames_id = -1

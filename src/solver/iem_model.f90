@@ -74,6 +74,10 @@ module iem_model
     !> only with stiffness damping), each owned node's mass-damping power (only with mass
     !> damping), the power of each loaded node's loads and of each prescribed dof's reaction.
     real(wp), allocatable :: en_cell(:), pw_cell(:), pw_node(:), pe_slot(:), pr_bc(:)
+    !> f_int - f_ext of the prescribed dofs of each owned node at the last committed
+    !> evaluation (0 at free dofs): the reactions less the inertia of the prescribed motion.
+    !> Moved and checkpointed with the node (an integrator's resume evaluates without commit).
+    real(wp), allocatable :: rbc(:, :)
     !> External work and damping dissipation of this rank since the start: exact sums of the
     !> weighted terms of every evaluation the integrator counts (add_work).
     type(exact_sum_t) :: w_ext_acc, w_damp_acc
@@ -83,6 +87,7 @@ module iem_model
     procedure :: prescribe => model_prescribe
     procedure :: add_work => model_add_work
     procedure :: energy_sums => model_energy_sums
+    procedure :: reaction_sums => model_reaction_sums
   end type model_t
 
 contains
@@ -289,8 +294,9 @@ contains
     end do
     call index_loaded_nodes(this, lat%n_owned)
     allocate(this%en_cell(lat%n_cells), this%pw_cell(lat%n_cells), this%pw_node(lat%n_owned), &
-             this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), stat=ierr)
-    call g%note(ierr, 'the energy terms of the rank', 16.0_wp*lat%n_cells + 8.0_wp*lat%n_owned)
+             this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), &
+             this%rbc(2, lat%n_owned), stat=ierr)
+    call g%note(ierr, 'the energy terms of the rank', 16.0_wp*lat%n_cells + 24.0_wp*lat%n_owned)
     if (g%failed) then
       call g%pass(guard)
       return
@@ -300,6 +306,7 @@ contains
     this%pw_node = 0.0_wp
     this%pe_slot = 0.0_wp
     this%pr_bc = 0.0_wp
+    this%rbc = 0.0_wp
     call this%w_ext_acc%reset()
     call this%w_damp_acc%reset()
   end subroutine model_init
@@ -366,13 +373,15 @@ contains
     logical, intent(in), optional :: record
     real(wp) :: f(2), r
     integer :: l, b, ld, comp, n, s, ne
-    logical :: changed, accept
+    logical :: changed, accept, keep
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
     ne = 0
+    keep = .false.
     if (present(commit)) then
       if (commit) ne = lat%n_cells
+      keep = commit
     end if
     if (present(record)) then
       if (record) ne = lat%n_cells
@@ -447,6 +456,11 @@ contains
       this%pr_bc(n) = 0.0_wp
       if (t >= this%bc_release(b)) cycle
       acc(comp, l) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
+      if (keep) then
+        this%rbc(comp, l) = this%f(comp, l)
+        if (this%bc_slot(n) > 0) this%rbc(comp, l) = this%rbc(comp, l) - &
+                                                      this%fext(comp, this%bc_slot(n))
+      end if
       if (y(2 + comp, l) /= 0.0_wp) then
         r = this%mass(l)*(acc(comp, l) + this%alpha*y(2 + comp, l)) + this%f(comp, l)
         if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
@@ -519,5 +533,30 @@ contains
       end do
     end if
   end subroutine model_energy_sums
+
+  !> Add the reactions of this rank's prescribed dofs at the last committed evaluation (the
+  !> accepted state y at time t) to sums(2*(s - 1) + comp), s = series(b) of the dof's &bc b,
+  !> exactly: the force R = m (a + alpha v) + f_int - f_ext the support exerts on the body
+  !> (inertia = .false., static runs: f_int - f_ext); a released condition exerts none.
+  subroutine model_reaction_sums(this, y, t, series, inertia, sums)
+    class(model_t), intent(in) :: this
+    real(wp), intent(in) :: y(:, :)
+    real(wp), intent(in) :: t
+    integer, intent(in) :: series(:)
+    logical, intent(in) :: inertia
+    type(exact_sum_t), intent(inout) :: sums(:)
+    integer :: n, l, comp, b
+    real(wp) :: r
+    do n = 1, size(this%bc_node)
+      l = this%bc_node(n)
+      comp = this%bc_comp(n)
+      b = this%bc_id(n)
+      if (t >= this%bc_release(b)) cycle
+      r = this%rbc(comp, l)
+      if (inertia) r = this%mass(l)*(this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t) + &
+                       this%alpha*y(2 + comp, l)) + r
+      call sums(2*(series(b) - 1) + comp)%add(r)
+    end do
+  end subroutine model_reaction_sums
 
 end module iem_model

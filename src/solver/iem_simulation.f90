@@ -27,6 +27,9 @@ module iem_simulation
   use iem_timers, only: timer_start, timer_stop, t_output
   use iem_strings, only: itoa, rtoa
   use iem_alloc_guard, only: alloc_guard_t
+  use iem_exact_sum, only: exact_sum_t
+  use iem_fracture_events, only: fracture_events_t
+  use iem_fragments, only: fragments_t, n_largest
   implicit none
   private
   public :: simulation_t
@@ -75,6 +78,21 @@ module iem_simulation
     real(wp), allocatable :: h_load(:), h_res(:)
     integer(i8), allocatable :: h_iter(:)
     real(wp), allocatable :: sample(:)
+    !> Reactions: the series of each &bc (&bc of one name share one), each series' name and
+    !> &bc (1-based, as text), and the buffered samples (2, series, samples).
+    integer, allocatable :: bc_series(:)
+    character(len=64), allocatable :: series_names(:)
+    character(len=256), allocatable :: series_bcs(:)
+    real(wp), allocatable :: h_react(:, :, :)
+    !> The exact sums of a sample: the five energies, then x and y of each reaction series.
+    type(exact_sum_t), allocatable :: xsums(:)
+    !> Fracture: the event log; the fragment count's work arrays, the last count and its
+    !> largest fragments (frag_valid: counted since this process started); buffered samples.
+    type(fracture_events_t) :: events
+    type(fragments_t) :: frag
+    logical :: frag_valid = .false.
+    integer(i8) :: n_frag = 0, frag_sizes(n_largest) = 0
+    integer(i8), allocatable :: h_frag(:), h_largest(:, :)
     real(wp) :: e0 = 0.0_wp, e_scale = 0.0_wp, last_balance = 0.0_wp
     real(wp) :: w_ext = 0.0_wp, w_damp = 0.0_wp
     logical :: output_open = .false.

@@ -57,6 +57,7 @@ contains
     ns = this%model%n_state
     call real_field('y', centre_node, ns, this%st%y, .true.)
     call real_field('acc', centre_node, ns - 2, this%st%acc, .true.)
+    call real_field('reaction', centre_node, 2, this%model%rbc, .true.)
     if (allocated(this%snap)) call real_field('last_good', centre_node, 4, this%snap, .false.)
     call real_field('cell_energy', centre_cell, 1, this%model%en_cell, .false.)
     if (this%model%nonlinear) then

@@ -1,5 +1,6 @@
 !> Output recording of a run: the output file's creation, history samples (energies,
-!> probes, spring probes) gathered into the buffer and flushed to the file, and frames.
+!> probes, spring probes, reactions, fracture events and fragments) gathered into the
+!> buffer and flushed to the file, and frames.
 submodule (iem_simulation) iem_simulation_output
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_SUM
@@ -8,7 +9,7 @@ submodule (iem_simulation) iem_simulation_output
   use iem_cell_kernel, only: cell_strain_measures
   use iem_nonlinear_springs, only: springs_per_cell, spring_kind, spring_strains
   use iem_build_info, only: iem_version
-  use iem_exact_sum, only: exact_sum_t, exact_sum_allreduce
+  use iem_exact_sum, only: exact_sum_allreduce
   use iem_lattice_queries, only: node_place
   use iem_fracture, only: edge_factor, shear_factor, failure_kind, intact_time
   implicit none
@@ -19,6 +20,8 @@ contains
   module procedure open_output
     if (this%restart%step > 0) then
       call reopen_output(this, stat, msg)
+      if (stat == 0) call this%out%reopen_series(this%series_names, this%model%fracture, &
+        this%restart%n_samples, this%restart%last_sample(1), stat, msg)
     else
       call create_output(this, stat, msg)
     end if
@@ -103,6 +106,12 @@ contains
       call this%out%define_spring_probes(sp_names, this%sp_cell, sp_xy, stat, msg)
       if (stat /= 0) return
     end if
+    call this%out%define_reactions(this%series_names, this%series_bcs, stat, msg)
+    if (stat /= 0) return
+    if (this%model%fracture) then
+      call this%out%define_fracture_history(stat, msg)
+      if (stat /= 0) return
+    end if
     if (.not. this%static) return
     associate(s => this%cfg%static)
       call this%out%write_static_settings(s%load_steps, s%tolerance, s%max_iterations, &
@@ -112,9 +121,8 @@ contains
 
   !> Gather one history sample (global sums with one Allreduce) into the buffer.
   module procedure record_sample
-    integer :: p, np, b, stat, o
-    real(wp) :: ke, se, e, scale, frac
-    type(exact_sum_t) :: sums(5)
+    integer :: p, np, b, stat, o, n_failed
+    real(wp) :: ke, se, e, scale, frac, t_from
 
     np = size(this%probe_gid)
     this%sample = 0.0_wp
@@ -132,18 +140,32 @@ contains
         this%sample(o + springs_per_cell + 1:o + 2*springs_per_cell))
       o = o + 2*springs_per_cell
     end do
-    call MPI_Allreduce(MPI_IN_PLACE, this%sample, size(this%sample), mpi_wp(), MPI_SUM, this%comm)
-    ! the energies as exact sums over nodes, cells and evaluations: the same bits on any
-    ! number of ranks and partition (a static run's work comes from its load steps)
-    call this%model%energy_sums(this%lat, this%st%y, sums)
-    call exact_sum_allreduce(sums, this%comm)
-    this%sample(1) = sums(1)%value()
-    this%sample(2) = sums(2)%value()
-    if (.not. this%static) then
-      this%sample(3) = sums(3)%value()
-      this%sample(4) = sums(4)%value()
+    ! fracture: the failures this rank counts since the last sample (the first: from t = 0 on,
+    ! so with the pre-cut springs); their number over the ranks comes with the sample's sum
+    if (this%model%fracture) then
+      t_from = this%last_sample(1)
+      if (k == 0) t_from = -1.0_wp
+      call this%events%collect(this%lat, this%model%fr, t_from, t)
+      this%sample(size(this%sample)) = real(this%events%n_loc, wp)
     end if
-    frac = sums(5)%value()
+    call MPI_Allreduce(MPI_IN_PLACE, this%sample, size(this%sample), mpi_wp(), MPI_SUM, this%comm)
+    ! the energies and the reactions as exact sums over nodes, cells and evaluations: the
+    ! same bits on any number of ranks and partition (a static run's work comes from its load
+    ! steps)
+    call this%model%energy_sums(this%lat, this%st%y, this%xsums(1:5))
+    do p = 6, size(this%xsums)
+      call this%xsums(p)%reset()
+    end do
+    call this%model%reaction_sums(this%st%y, t, this%bc_series, .not. this%static, &
+                                  this%xsums(6:))
+    call exact_sum_allreduce(this%xsums, this%comm)
+    this%sample(1) = this%xsums(1)%value()
+    this%sample(2) = this%xsums(2)%value()
+    if (.not. this%static) then
+      this%sample(3) = this%xsums(3)%value()
+      this%sample(4) = this%xsums(4)%value()
+    end if
+    frac = this%xsums(5)%value()
     diverged = .not. all(ieee_is_finite(this%sample))
     if (diverged) return
     if (this%n_buf == size(this%h_time)) call flush_history(this, stat)
@@ -177,6 +199,21 @@ contains
       this%h_sp_s(:, p, b) = this%sample(o + springs_per_cell + 1:o + 2*springs_per_cell)
       o = o + 2*springs_per_cell
     end do
+    do p = 1, size(this%series_names)
+      this%h_react(:, p, b) = [this%xsums(4 + 2*p)%value(), this%xsums(5 + 2*p)%value()]
+    end do
+    if (.not. this%model%fracture) return
+    ! the failures to rank 0, in canonical order; the fragments counted again only when
+    ! springs failed since the last count (or none was made since the run (re)started)
+    n_failed = nint(this%sample(size(this%sample)))
+    call this%events%gather(this%comm, n_failed)
+    if (n_failed > 0 .or. .not. this%frag_valid) then
+      call this%frag%count(this%lat, this%halo, this%comm, this%model%fr, this%n_frag, &
+                           this%frag_sizes)
+      this%frag_valid = .true.
+    end if
+    this%h_frag(b) = this%n_frag
+    this%h_largest(:, b) = this%frag_sizes
   end procedure record_sample
 
   !> Degree of nonlinearity of each counted cell at the committed state: the smallest secant
@@ -241,6 +278,19 @@ contains
     end if
     if (stat == 0 .and. size(this%sp_probe) > 0) call this%out%write_spring_history(n, &
       this%h_sp_e(:, :, 1:n), this%h_sp_s(:, :, 1:n), stat, msg)
+    if (stat == 0) then
+      if (this%model%fracture) then
+        call this%out%write_series(n, this%h_react(:, :, 1:n), stat, msg, &
+          fragments=this%h_frag(1:n), largest=this%h_largest(:, 1:n))
+        associate(ev => this%events)
+          if (stat == 0) call this%out%write_events(ev%n_buf, ev%time, ev%x, ev%y, ev%kind, &
+            ev%cell, ev%spring, stat, msg)
+        end associate
+        call this%events%clear()
+      else
+        call this%out%write_series(n, this%h_react(:, :, 1:n), stat, msg)
+      end if
+    end if
     this%n_buf = 0
   end procedure flush_history
 

@@ -227,7 +227,16 @@ contains
     allocate(this%h_energy(n_energy, history_chunk))
     allocate(this%h_pu(2, np, history_chunk), this%h_pv(2, np, history_chunk))
     allocate(this%h_load(history_chunk), this%h_res(history_chunk), this%h_iter(history_chunk))
-    allocate(this%sample(4 + 4*np + 2*springs_per_cell*nsp))
+    ! reactions (one series a &bc name) and fracture: their buffers; a sample's sums
+    call reaction_series(this)
+    allocate(this%h_react(2, size(this%series_names), history_chunk))
+    allocate(this%xsums(5 + 2*size(this%series_names)))
+    if (this%model%fracture) then
+      allocate(this%h_frag(history_chunk), this%h_largest(n_largest, history_chunk))
+      call this%events%init()
+    end if
+    ! the sample: probes, spring probes, and the failures this rank found (fracture)
+    allocate(this%sample(4 + 4*np + 2*springs_per_cell*nsp + merge(1, 0, this%model%fracture)))
     ! the set-up's wall time and the peak memory so far (largest over ranks), for benchmarks
     peak = real(peak_rss_bytes(), wp)/1048576.0_wp
     call MPI_Allreduce(MPI_IN_PLACE, peak, 1, mpi_wp(), MPI_MAX, comm)
@@ -238,6 +247,34 @@ contains
     stat = 0
     msg = ''
   end procedure simulation_setup
+
+  !> The reaction series: one a &bc name, several &bc of one name sharing it (an unnamed
+  !> &bc, or one whose name cannot name a dataset, is bc_<k>, k its 1-based index).
+  subroutine reaction_series(this)
+    type(simulation_t), intent(inout) :: this
+    character(len=64) :: name
+    character(len=64), allocatable :: names(:)
+    integer :: b, s, ns
+    allocate(names(size(this%cfg%bcs)), this%series_bcs(size(this%cfg%bcs)), &
+             this%bc_series(size(this%cfg%bcs)))
+    ns = 0
+    do b = 1, size(this%cfg%bcs)
+      name = this%cfg%bcs(b)%name
+      if (len_trim(name) == 0 .or. index(name, '/') > 0 .or. name == '.') name = 'bc_'//itoa(b)
+      s = findloc(names(1:ns), name, 1)
+      if (s == 0) then
+        ns = ns + 1
+        s = ns
+        names(s) = name
+        this%series_bcs(s) = itoa(b)
+      else
+        this%series_bcs(s) = trim(this%series_bcs(s))//' '//itoa(b)
+      end if
+      this%bc_series(b) = s
+    end do
+    this%series_names = names(1:ns)
+    this%series_bcs = this%series_bcs(1:ns)
+  end subroutine reaction_series
 
   !> Refuse (stat = 1, msg) a run whose estimated memory exceeds what its nodes have (before
   !> anything problem-sized is allocated); log the estimate. Collective.
