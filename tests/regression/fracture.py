@@ -15,6 +15,15 @@ its right end moves at a constant velocity, and one crack opens across it.
            the suddenly applied velocity)
   ranks    on each of --ranks the history (every dataset under /history: energies with the
            fracture energy, probes, times) and the last frame are bitwise those of the first
+  criteria the other criteria and the static path, each on its own small case in the folder
+           of --case: a bar crushed (fracture_bar_crush.nml) dissipates the crushing energy
+           over its section and carries at most the compressive strength times it; a layer
+           sheared (fracture_layer_shear.nml) dissipates the shear fracture energy over its
+           area and carries at most the shear strength times it (both within --band, the
+           peaks within [0.9, 1.05]; the failures logged with their kind: crushing, shear);
+           the bar of --case pulled apart in 20 static load steps dissipates the fracture
+           energy over its section within --band (the dissipation does not depend on the
+           load steps)
   restart  a run checkpointed while the crack opens, continued with restart on --ranks,
            gives bitwise the history and last frame of the uninterrupted run (written on the
            first of --ranks), on the same and on other rank counts
@@ -106,6 +115,61 @@ def cmd_grids(args: argparse.Namespace) -> None:
         print(f"{nx:<4d} {ny:<4d} {ratio:<21.4f} {peak:.4f}")
 
 
+def cmd_criteria(args: argparse.Namespace) -> None:
+    """Crushing, shear and a static pull: dissipation and peak force."""
+    folder = Path(args.case).parent
+    work = rg.scratch("fracture_criteria")
+    cases = [("fracture_bar_crush.nml", "compressive_strength", "crushing_energy", "push",
+              0, 2, "crushing"),
+             ("fracture_layer_shear.nml", "shear_strength", "shear_fracture_energy", "slide",
+              0, 3, "shear")]
+    for name, strength_key, energy_key, bc, comp, kind, label in cases:
+        src = folder / name
+        text = src.read_text()
+        strength, energy = value(text, strength_key), value(text, energy_key)
+        length, height = value(text, "length"), value(text, "height")
+        thickness = value(text, "thickness")
+        # the crushed band crosses the bar's section; the sheared band runs along the layer
+        area = (height if label == "crushing" else length) * thickness
+        nml = variant(src, work / name, f"{label}.h5")
+        if rg.run_ok(args, args.ranks[0], nml, work, label) is None:
+            continue
+        with h5py.File(work / f"{label}.h5", "r") as f:
+            diss = float(f["history/energy/fracture"][-1])
+            force = float(np.abs(f[f"history/reactions/{bc}"][:, comp]).max())
+            kinds = np.unique(f["history/fracture/events/kind"][:])
+        ratio = diss / (energy * area)
+        rg.check(abs(ratio - 1.0) <= args.band,
+                 f"{label}: dissipated {diss:.5g} J = {ratio:.4f} x {energy_key} x area, "
+                 f"within {args.band:.0%}")
+        peak = force / (strength * area)
+        rg.check(0.9 <= peak <= 1.05,
+                 f"{label}: peak force {force:.5g} N = {peak:.4f} x {strength_key} x area, "
+                 f"within [0.9, 1.05]")
+        rg.check(list(kinds) == [kind], f"{label}: every failure logged as kind {kind} "
+                                        f"(got {list(kinds)})")
+    # the bar of --case pulled apart statically: its right end moved far past the crack
+    # opening in 20 load steps
+    text = Path(args.case).read_text()
+    gf, height = value(text, "fracture_energy"), value(text, "height")
+    thickness = value(text, "thickness")
+    static = re.sub(r"&run\b[^/]*/", "&run\n  analysis = 'static', t_end = 1.0, "
+                    "output_file = 'static.h5', overwrite = .true.\n/\n&static\n  "
+                    "load_steps = 20, tolerance = 1.0e-6\n/", text, count=1, flags=re.S)
+    static, n = re.subn(r"velocity\s*=\s*[-+0-9.eE]+\s*,", "velocity = 1.0e-4,", static)
+    if n != 1:
+        raise SystemExit(f"{args.case}: expected one velocity")
+    (work / "static.nml").write_text(static)
+    if rg.run_ok(args, args.ranks[0], work / "static.nml", work, "static pull") is None:
+        return
+    with h5py.File(work / "static.h5", "r") as f:
+        diss = float(f["history/energy/fracture"][-1])
+    ratio = diss / (gf * height * thickness)
+    rg.check(abs(ratio - 1.0) <= args.band,
+             f"static pull in 20 load steps: dissipated {diss:.5g} J = {ratio:.4f} x Gf h t, "
+             f"within {args.band:.0%}")
+
+
 def history_keys(f: h5py.File) -> list[str]:
     """Every dataset under /history, and the last frame's datasets."""
     keys: list[str] = []
@@ -177,7 +241,7 @@ def main() -> int:
     """Parse arguments and run one check."""
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("check", choices=["grids", "ranks", "restart"])
+    ap.add_argument("check", choices=["grids", "ranks", "restart", "criteria"])
     ap.add_argument("--iem", required=True, help="path of the iem executable")
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="", help="extra mpiexec flags, ';'-separated")
@@ -191,7 +255,8 @@ def main() -> int:
     ap.add_argument("--checkpoint", type=float, default=1.5e-3,
                     help="restart: checkpoint interval (s)")
     args = ap.parse_args()
-    {"grids": cmd_grids, "ranks": cmd_ranks, "restart": cmd_restart}[args.check](args)
+    {"grids": cmd_grids, "ranks": cmd_ranks, "restart": cmd_restart,
+     "criteria": cmd_criteria}[args.check](args)
     if rg.FAILURES:
         print(f"{len(rg.FAILURES)} check(s) failed")
         return 1
