@@ -8,7 +8,7 @@ module iem_fracture_kernel
   use iem_kinds, only: wp
   use iem_spring_constants, only: cell_constants_t, law_bending
   use iem_fracture, only: fracture_t, edge_factor, shear_factor, intact_time
-  use iem_fracture_law, only: fracture_law_t, crit_tension, crit_crushing, crit_shear
+  use iem_fracture_law, only: fracture_law_t, crit_tension, crit_crushing, crit_shear, no_onset
   implicit none
   private
   public :: fracture_chunk, damaged_cell
@@ -44,15 +44,26 @@ contains
     n_dmg = 0
     dmg(1:m) = .false.
     if (.not. any(fr%hit(c_first:c_first + m - 1))) then
-      ! one pass over the chunk's strains: the largest stretch, compression and shear
+      ! the largest stretch, compression and shear of the chunk, each only when some
+      ! material has that criterion
       e_hi = 0.0_wp
       e_lo = 0.0_wp
       s_hi = 0.0_wp
-      do c = 1, m
-        e_hi = max(e_hi, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
-        e_lo = min(e_lo, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
-        s_hi = max(s_hi, abs(s(c, 1)), abs(s(c, 2)), abs(s(c, 3)), abs(s(c, 4)))
-      end do
+      if (fr%onset_min(crit_tension) < no_onset) then
+        do c = 1, m
+          e_hi = max(e_hi, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
+        end do
+      end if
+      if (fr%onset_min(crit_crushing) < no_onset) then
+        do c = 1, m
+          e_lo = min(e_lo, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
+        end do
+      end if
+      if (fr%onset_min(crit_shear) < no_onset) then
+        do c = 1, m
+          s_hi = max(s_hi, abs(s(c, 1)), abs(s(c, 2)), abs(s(c, 3)), abs(s(c, 4)))
+        end do
+      end if
       if (e_hi <= fr%onset_min(crit_tension) .and. -e_lo <= fr%onset_min(crit_crushing) .and. &
           s_hi <= fr%onset_min(crit_shear)) return
     end if
