@@ -1,11 +1,88 @@
-!> In-place sorting of 64-bit integer keys (heap sort: O(n log n), no extra memory).
+!> Sorting: 64-bit integer keys in place (heap sort: O(n log n), no extra memory), and the
+!> stable ordering of n items by a caller's comparison (merge sort: O(n log n)).
 module iem_sort
   use iem_kinds, only: i8
   implicit none
   private
-  public :: sort_i8
+  public :: sort_i8, stable_order, item_before, sum_by_label
+
+  abstract interface
+    !> Whether item a goes strictly before item b.
+    logical function item_before(a, b)
+      integer, intent(in) :: a, b
+    end function item_before
+  end interface
 
 contains
+
+  !> The distinct labels of pairs = (label, value, label, value, ...), ascending, in keys,
+  !> and the sum of the values of each label, in sums.
+  pure subroutine sum_by_label(pairs, keys, sums)
+    integer(i8), intent(in) :: pairs(:)
+    integer(i8), allocatable, intent(out) :: keys(:), sums(:)
+    integer :: n, m, k, a, b, mid
+    n = size(pairs)/2
+    keys = pairs(1:2*n:2)
+    call sort_i8(keys)
+    m = 0
+    do k = 1, n
+      if (m > 0) then
+        if (keys(k) == keys(m)) cycle
+      end if
+      m = m + 1
+      keys(m) = keys(k)
+    end do
+    keys = keys(1:m)
+    allocate(sums(m), source=0_i8)
+    do k = 1, n
+      a = 1
+      b = m
+      do while (a < b)
+        mid = (a + b)/2
+        if (keys(mid) < pairs(2*k - 1)) then
+          a = mid + 1
+        else
+          b = mid
+        end if
+      end do
+      sums(a) = sums(a) + pairs(2*k)
+    end do
+  end subroutine sum_by_label
+
+  !> order(k): the k-th of the items 1..size(order) ordered by before, items that compare
+  !> equal keeping their order (a bottom-up merge sort).
+  subroutine stable_order(before, order)
+    procedure(item_before) :: before
+    integer, intent(out) :: order(:)
+    integer, allocatable :: tmp(:)
+    integer :: n, width, lo, mid, hi, i, j, k
+    logical :: take_left
+    n = size(order)
+    order = [(i, i = 1, n)]
+    allocate(tmp(n))
+    width = 1
+    do while (width < n)
+      do lo = 1, n, 2*width
+        mid = min(lo + width, n + 1)
+        hi = min(lo + 2*width, n + 1)
+        i = lo
+        j = mid
+        do k = lo, hi - 1
+          take_left = i < mid
+          if (take_left .and. j < hi) take_left = .not. before(order(j), order(i))
+          if (take_left) then
+            tmp(k) = order(i)
+            i = i + 1
+          else
+            tmp(k) = order(j)
+            j = j + 1
+          end if
+        end do
+      end do
+      order = tmp
+      width = 2*width
+    end do
+  end subroutine stable_order
 
   !> Sort a(:) ascending.
   pure subroutine sort_i8(a)

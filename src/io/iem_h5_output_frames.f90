@@ -4,6 +4,7 @@
 submodule (iem_h5_output) iem_h5_output_frames
   use mpi_f08, only: MPI_Allgather, MPI_Gatherv, MPI_INTEGER, MPI_INTEGER8
   use iem_kinds, only: mpi_wp
+  use iem_sort, only: stable_order
   use iem_strings, only: itoa
   use iem_xdmf, only: xdmf_frame_name, xdmf_field_bit, xdmf_xyz_suffix
   use hdf5, only: HSIZE_T, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5gcreate_f, h5gopen_f, h5gclose_f, &
@@ -309,7 +310,7 @@ contains
     out_kind = 0
     out_time = 0.0_wp
     if (n_out > 0) then
-      call sort_order(all_key(1:n_out), order(1:n_out))
+      call stable_order(key_before, order(1:n_out))
       do k = 1, n_out
         out_cell(k) = all_key(order(k))/springs
         out_spring(k) = int(modulo(all_key(order(k)), int(springs, i8)))
@@ -349,6 +350,14 @@ contains
       msg = 'iem_h5_output: write_failed_springs: cell, spring, kind and time differ in '// &
             'length; nothing written from this rank to '//where//' in '//this%path
     end if
+
+  contains
+
+    !> Whether entry a of the gathered list comes before entry b (by cell, then spring).
+    logical function key_before(a, b)
+      integer, intent(in) :: a, b
+      key_before = all_key(a) < all_key(b)
+    end function key_before
   end procedure h5_output_write_failed_springs
 
   !> Creates the 1-D dataset `name` (file type ftype) of n entries in group `gid` and, when
@@ -392,39 +401,5 @@ contains
     call close_space(this%path, mspace, stat, msg)
   end subroutine write_list
 
-  !> order: the permutation that sorts key ascending (a stable merge sort, O(n log n)).
-  pure subroutine sort_order(key, order)
-    integer(i8), intent(in) :: key(:)
-    integer, intent(out) :: order(:)
-    integer, allocatable :: tmp(:)
-    integer :: n, width, lo, mid, hi, i, j, k
-    logical :: take_left
-
-    n = size(key)
-    order = [(i, i = 1, n)]
-    allocate (tmp(n))
-    width = 1
-    do while (width < n)
-      do lo = 1, n, 2*width
-        mid = min(lo + width, n + 1)
-        hi = min(lo + 2*width, n + 1)
-        i = lo
-        j = mid
-        do k = lo, hi - 1
-          take_left = i < mid
-          if (take_left .and. j < hi) take_left = key(order(i)) <= key(order(j))
-          if (take_left) then
-            tmp(k) = order(i)
-            i = i + 1
-          else
-            tmp(k) = order(j)
-            j = j + 1
-          end if
-        end do
-      end do
-      order = tmp
-      width = 2*width
-    end do
-  end subroutine sort_order
 
 end submodule iem_h5_output_frames

@@ -8,6 +8,7 @@ module iem_fracture_events
   use iem_kinds, only: wp, ip, i8, mpi_wp, mpi_i8, mpi_ip
   use iem_local_lattice, only: local_lattice_t
   use iem_fracture, only: fracture_t, failure_kind
+  use iem_sort, only: stable_order
   implicit none
   private
   public :: fracture_events_t
@@ -84,7 +85,7 @@ contains
     type(MPI_Comm), intent(in) :: comm
     integer, intent(in) :: n_total
     integer(ip), allocatable :: n_of(:), displ(:)
-    integer, allocatable :: order(:), work(:)
+    integer, allocatable :: order(:)
     real(wp), allocatable :: all_r(:, :)
     integer(i8), allocatable :: all_i(:, :)
     integer :: rank, nranks, k, j, n0
@@ -108,11 +109,8 @@ contains
     n0 = this%n_buf
     this%n_buf = this%n_buf + n_total
     if (rank /= 0) return
-    allocate(order(n_total), work(n_total))
-    do k = 1, n_total
-      order(k) = k
-    end do
-    call merge_sort(order, work)
+    allocate(order(n_total))
+    call stable_order(before, order)
     call reserve(this, this%n_buf)
     do k = 1, n_total
       j = order(k)
@@ -135,37 +133,6 @@ contains
         before = all_i(2, a) < all_i(2, b)
       end if
     end function before
-    !> Stable bottom-up merge sort of the event indices idx by `before` (tmp: work space).
-    subroutine merge_sort(idx, tmp)
-      integer, intent(inout) :: idx(:), tmp(:)
-      integer :: w, lo, mid, hi, i, k2, m2, n
-      logical :: left
-      n = size(idx)
-      w = 1
-      do while (w < n)
-        lo = 1
-        do while (lo <= n)
-          mid = min(lo + w - 1, n)
-          hi = min(lo + 2*w - 1, n)
-          i = lo
-          m2 = mid + 1
-          do k2 = lo, hi
-            left = i <= mid
-            if (left .and. m2 <= hi) left = .not. before(idx(m2), idx(i))
-            if (left) then
-              tmp(k2) = idx(i)
-              i = i + 1
-            else
-              tmp(k2) = idx(m2)
-              m2 = m2 + 1
-            end if
-          end do
-          lo = hi + 1
-        end do
-        idx = tmp
-        w = 2*w
-      end do
-    end subroutine merge_sort
   end subroutine events_gather
 
   !> Empty the buffer (after it was written).

@@ -14,7 +14,7 @@ module iem_fragments
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_fracture, only: fracture_t, edge_factor
-  use iem_sort, only: sort_i8
+  use iem_sort, only: sort_i8, sum_by_label
   implicit none
   private
   public :: fragments_t, n_largest
@@ -195,7 +195,7 @@ contains
     integer(ip), allocatable :: n_of(:), displ(:)
     integer(i8), allocatable :: keys(:), sizes(:)
     integer(ip) :: mine(1)
-    integer :: nranks, k, n, m, a, b, mid, j
+    integer :: nranks, k, m, j
     integer(i8) :: total
 
     call MPI_Comm_size(comm, nranks)
@@ -220,31 +220,8 @@ contains
     res = 0
     if (rank /= 0) return
     ! the distinct labels, ascending, and the owned nodes of each summed over the ranks
-    n = int(total/2)
-    keys = this%all_pairs(1:2*n:2)
-    call sort_i8(keys)
-    m = 0
-    do k = 1, n
-      if (m > 0) then
-        if (keys(k) == keys(m)) cycle
-      end if
-      m = m + 1
-      keys(m) = keys(k)
-    end do
-    allocate(sizes(m), source=0_i8)
-    do k = 1, n
-      a = 1
-      b = m
-      do while (a < b)
-        mid = (a + b)/2
-        if (keys(mid) < this%all_pairs(2*k - 1)) then
-          a = mid + 1
-        else
-          b = mid
-        end if
-      end do
-      sizes(a) = sizes(a) + this%all_pairs(2*k)
-    end do
+    call sum_by_label(this%all_pairs(1:total), keys, sizes)
+    m = size(keys)
     res(1) = m
     call sort_i8(sizes)
     do j = 1, min(n_largest, m)

@@ -8,7 +8,7 @@ module iem_pieces
   use iem_kinds, only: wp, ip, i8, mpi_wp, mpi_i8, mpi_ip
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
-  use iem_sort, only: sort_i8
+  use iem_sort, only: sort_i8, sum_by_label
   implicit none
   private
   public :: count_pieces, max_listed
@@ -157,7 +157,7 @@ contains
     integer(i8), allocatable :: mine(:), pairs(:), all_pairs(:), keys(:), size_of(:)
     integer(ip), allocatable :: n_of(:), displ(:)
     integer(ip) :: n_mine(1)
-    integer :: c, k, n, m, rank, nranks, a, b, mid
+    integer :: c, k, n, m, rank, nranks
     integer(i8) :: big, best
 
     call MPI_Comm_rank(comm, rank)
@@ -203,31 +203,8 @@ contains
     listed = -1
     if (rank == 0) then
       ! the distinct labels, ascending, and the cells of each
-      n = size(all_pairs)/2
-      keys = all_pairs(1:2*n:2)
-      call sort_i8(keys)
-      m = 0
-      do k = 1, n
-        if (m > 0) then
-          if (keys(k) == keys(m)) cycle
-        end if
-        m = m + 1
-        keys(m) = keys(k)
-      end do
-      allocate(size_of(m), source=0_i8)
-      do k = 1, n
-        a = 1
-        b = m
-        do while (a < b)
-          mid = (a + b)/2
-          if (keys(mid) < all_pairs(2*k - 1)) then
-            a = mid + 1
-          else
-            b = mid
-          end if
-        end do
-        size_of(a) = size_of(a) + all_pairs(2*k)
-      end do
+      call sum_by_label(all_pairs, keys, size_of)
+      m = size(keys)
       ! the largest piece: the first of the most cells in ascending label order
       best = -1
       big = -1
