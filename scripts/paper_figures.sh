@@ -5,11 +5,11 @@
 # that docs/nonlinear.md quotes. The static cantilever also runs on a grid twice as fine
 # (160 x 16) to show the convergence towards the fibre-section reference. Then the paper's
 # concrete beams with fracture (Figs. 15-18): the cantilever and the simply supported beam of
-# inputs/concrete_*_fracture.nml run into run/fracture/, their crack maps at three stages and
-# their load-deflection curves go into the same folder, and postproc/scripts/concrete_beams.py
-# prints the numbers docs/fracture.md quotes. About 3 minutes on 2 cores for the nonlinear
-# part, 1.5 more for the fracture part (4 when the cores are shared with other work);
-# FRACTURE_ONLY=1 runs only the fracture part.
+# inputs/concrete_*_fracture.nml run into run/fracture/, their crack maps at three stages,
+# their damage near the crack and their load-deflection curves go into the same folder, and
+# postproc/scripts/concrete_beams.py prints the numbers docs/fracture.md quotes. About 3
+# minutes on 2 cores for the nonlinear part, 1.5 more for the fracture part (6 when the cores
+# are shared with other work); FRACTURE_ONLY=1 runs only the fracture part.
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 install_packages
 make_venv
@@ -63,5 +63,13 @@ done
 post crack-map concrete_beam_fracture.h5 --frame 80 --scale auto -o "$out/fig18_beam_cracks_80.png"
 post curve concrete_beam_fracture.h5 --load load:y --load-scale=-1 \
   --displacement mid_bottom:y --displacement-scale=-1e3 -o "$out/fig18_beam_curve.png"
+# The damage (softening zone included) near the crack, and which criteria softened it
+# (onset strains f_t/E, f_c/E, tau/G of the inputs).
+damage() { PYTHONPATH="$IEM_ROOT/postproc" "$IEM_VENV/bin/python" \
+  "$IEM_ROOT/postproc/scripts/damage_map.py" "$@" --onsets 1.0e-4,1.0e-3,2.3334e-4; }
+damage concrete_cantilever_fracture.h5 --frame 60 --box 0.0,0.3,0.0,0.2 \
+  -o "$out/fig17_cantilever_damage_60.png"
+damage concrete_beam_fracture.h5 --frame 80 --box 0.45,0.75,0.0,0.2 \
+  -o "$out/fig18_beam_damage_80.png"
 PYTHONPATH="$IEM_ROOT/postproc" "$IEM_VENV/bin/python" \
   "$IEM_ROOT/postproc/scripts/concrete_beams.py" --dir .
