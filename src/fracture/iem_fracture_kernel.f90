@@ -195,8 +195,8 @@ contains
   !> q by fe_q, the Poisson spring of corner q (edges q and q-1) by min(fe_q, fe_q-1), its
   !> shear spring by min(fs_q, fe_q, fe_q-1); the bending-corrected cell, whose x part is
   !> written as a term of each x edge plus a coupling term, each x edge's term by its factor
-  !> and the coupling by min(fe_1, fe_3) (y alike), its volume term by the least fe, its shear
-  !> term by the least of all eight factors.
+  !> and the coupling by sqrt(fe_1 fe_3) (y alike), its volume term by the least fe, its
+  !> shear term by the least of all eight factors.
   pure subroutine damaged_cell(k, ep, s, fe, fs, g, t)
     type(cell_constants_t), intent(in) :: k
     real(wp), intent(in) :: ep(4), s(4), fe(4), fs(4)
@@ -205,9 +205,10 @@ contains
     integer :: q, qm, qp
     if (k%law == law_bending) then
       ! x part 2ce mx^2 + cb dx^2 = 2cb (e1^2 + e3^2) + (ce/2 - cb) (e1 + e3)^2: a term of
-      ! each edge (its own factor) and a coupling term (the smaller factor); y alike
-      fx = min(fe(1), fe(3))
-      fy = min(fe(2), fe(4))
+      ! each edge (its own factor) and a coupling term (the geometric mean of the two: 0 when
+      ! either edge failed, each edge's factor when they are equal); y alike
+      fx = sqrt(fe(1)*fe(3))
+      fy = sqrt(fe(2)*fe(4))
       fv = minval(fe)
       fg = min(fv, minval(fs))
       mx = ep(1) + ep(3)
