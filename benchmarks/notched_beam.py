@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import iembench as ib  # noqa: E402
 
 SCENE = ib.ROOT / "inputs" / "notched_beam_gregoire.nml"
-BAND = Path("/work/shared/data/fracture/gregoire2013_half_notched_beam.csv")
+BAND = ib.ROOT.parent / "shared" / "data" / "fracture" / "gregoire2013_half_notched_beam.csv"
 SPECIMEN_THICKNESS = 0.05  # m
 LIGAMENT_AREA = 0.025 * 0.05  # m^2: (depth - notch) x thickness
 CRITERION = 0.10  # the issue's: peak load and dissipated energy within 10 % across grids

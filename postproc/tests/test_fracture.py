@@ -297,7 +297,7 @@ def test_curve_reference_band(fracture_file: Synthetic, tmp_path: Path) -> None:
 
 def test_curve_reference_shipped_table() -> None:
     """The experimental band shipped with the project reads (mm to m)."""
-    path = Path("/work/shared/data/fracture/gregoire2013_half_notched_beam.csv")
+    path = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "fracture" / "gregoire2013_half_notched_beam.csv"
     if not path.is_file():
         pytest.skip("no shared fracture data here")
     band = curves.read_reference(path, (1e-3, 1.0))
