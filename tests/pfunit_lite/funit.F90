@@ -362,7 +362,7 @@ contains
     if (ieee_is_nan(e) .or. ieee_is_nan(f)) return
     select case (op)
     case (OP_EQ); ok = abs(e - f) <= tol
-    case (OP_REL); ok = abs(e - f) <= tol * abs(e)
+    case (OP_REL); ok = e /= 0.0_real64 .and. abs(e - f) <= tol * abs(e)  ! pFUnit: zero denominator fails
     case (OP_LT); ok = e < f
     case (OP_LE); ok = e <= f
     case (OP_GT); ok = e > f
@@ -384,7 +384,9 @@ contains
     s = 'expected <' // value_text(x, ja) // '> but found <' // value_text(y, jb) // '>'
     if (x%k == K_R32 .or. x%k == K_R64 .or. y%k == K_R32 .or. y%k == K_R64) then
       s = s // ', |difference| = ' // real_text(abs(x%r(ja) - y%r(jb)))
-      if (op == OP_REL) then
+      if (op == OP_REL .and. x%r(ja) == 0.0_real64) then
+        s = s // ': zero denominator (an expected value of 0 cannot be compared relatively)'
+      else if (op == OP_REL) then
         s = s // ' > tolerance*|expected| = ' // real_text(tol * abs(x%r(ja)))
       else
         s = s // ' > tolerance = ' // real_text(tol)
