@@ -11,7 +11,7 @@ submodule (iem_h5_output) iem_h5_output_reopen
     h5screate_simple_f, h5sclose_f, h5aopen_f, h5awrite_f, h5aclose_f, H5T_NATIVE_INTEGER
   use iem_h5_layout, only: energy_names
   use iem_h5_primitives, only: failed, put_attr, select_runs, make_mem_space, gid_runs, one, &
-    close_space
+    close_space, open_cut
   implicit none
 
 contains
@@ -161,29 +161,8 @@ contains
       integer, intent(in) :: ncomp
       integer(i8), intent(in) :: n
       integer(HID_T), intent(inout) :: dset
-      integer :: rank, e
-      integer(HSIZE_T) :: d(2), md(2)
-      if (stat /= 0) return
-      call h5dopen_f(loc, name, dset, e)
-      if (failed(this%path, e, 'h5dopen_f', where, stat, msg)) return
-      call h5dget_space_f(dset, space, e)
-      if (failed(this%path, e, 'h5dget_space_f', where, stat, msg)) return
-      call h5sget_simple_extent_dims_f(space, d, md, rank)
-      call h5sclose_f(space, e)
-      space = -1
-      rank = merge(1, 2, ncomp == 0)
-      if (d(rank) < int(n, HSIZE_T)) then
-        stat = 1
-        msg = 'iem_h5_output: '//path//': '//where//' holds '//itoa(int(d(rank), i8))// &
-              ' entries, fewer than the '//itoa(n)//' the checkpoint needs'
-        return
-      end if
-      if (ncomp == 0) then
-        call h5dset_extent_f(dset, [int(n, HSIZE_T)], e)
-      else
-        call h5dset_extent_f(dset, [int(ncomp, HSIZE_T), int(n, HSIZE_T)], e)
-      end if
-      if (failed(this%path, e, 'h5dset_extent_f', where, stat, msg)) return
+      dset = -1
+      call open_cut(loc, this%path, name, where, ncomp, n, dset, stat, msg)
     end subroutine open_series
   end procedure h5_output_reopen
 

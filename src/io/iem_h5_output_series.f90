@@ -6,7 +6,8 @@ submodule (iem_h5_output) iem_h5_output_series
   use hdf5, only: HSIZE_T, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5gcreate_f, h5gclose_f, h5dopen_f, &
     h5dread_f, h5dwrite_f, h5dget_space_f, h5dset_extent_f, h5sget_simple_extent_dims_f, &
     h5sclose_f, h5lexists_f, H5T_IEEE_F64LE, H5T_STD_I64LE, H5T_STD_I32LE, H5T_NATIVE_INTEGER
-  use iem_h5_primitives, only: failed, put_attr, create_series, prepare_append, close_space, one
+  use iem_h5_primitives, only: failed, put_attr, create_series, prepare_append, close_space, one, &
+    open_cut
   implicit none
 
   !> The event series, in /history/fracture/events.
@@ -179,19 +180,19 @@ contains
         exit work
       end if
       do p = 1, size(names)
-        call open_cut(this, 'history/reactions/'//trim(names(p)), &
+        call open_cut(this%file_id, this%path, 'history/reactions/'//trim(names(p)), &
           trim(this%reaction_path(p)), 2, n_samples, this%reaction_id(p), stat, msg)
       end do
       this%n_series_samples = n_samples
       if (.not. fracture) exit work
-      call open_cut(this, 'history/fracture/fragments', fr_where//'/fragments', 0, n_samples, &
-        this%fragments_id, stat, msg)
-      call open_cut(this, 'history/fracture/largest_fragments', &
+      call open_cut(this%file_id, this%path, 'history/fracture/fragments', &
+        fr_where//'/fragments', 0, n_samples, this%fragments_id, stat, msg)
+      call open_cut(this%file_id, this%path, 'history/fracture/largest_fragments', &
         fr_where//'/largest_fragments', n_largest_fragments, n_samples, this%largest_id, &
         stat, msg)
       ! the events logged up to the last sample kept (they are in time order)
-      call open_cut(this, 'history/fracture/events/time', fr_where//'/events/time', 0, -1_i8, &
-        this%event_id(1), stat, msg, have)
+      call open_cut(this%file_id, this%path, 'history/fracture/events/time', &
+        fr_where//'/events/time', 0, -1_i8, this%event_id(1), stat, msg, have)
       if (stat /= 0) exit work
       allocate(times(have))
       if (have > 0) then
@@ -200,7 +201,7 @@ contains
       end if
       this%n_events = count(times <= t_last, kind=i8)
       do k = 1, n_event_series
-        call open_cut(this, 'history/fracture/events/'//trim(event_names(k)), &
+        call open_cut(this%file_id, this%path, 'history/fracture/events/'//trim(event_names(k)), &
           fr_where//'/events/'//trim(event_names(k)), 0, this%n_events, this%event_id(k), &
           stat, msg)
       end do
@@ -225,47 +226,6 @@ contains
       this%reaction_path(p) = '/history/reactions/'//trim(names(p))
     end do
   end subroutine reaction_paths
-
-  !> Open the extendible series `name` (called `where`) unless open already, and cut it to
-  !> n entries (it must hold at least n; n < 0: keep them all); have: what it held.
-  !> Collective; nothing once stat /= 0.
-  subroutine open_cut(this, name, where, ncomp, n, dset, stat, msg, have)
-    class(h5_output_t), intent(inout) :: this
-    character(len=*), intent(in) :: name, where
-    integer, intent(in) :: ncomp
-    integer(i8), intent(in) :: n
-    integer(HID_T), intent(inout) :: dset
-    integer, intent(inout) :: stat
-    character(len=:), allocatable, intent(inout) :: msg
-    integer(i8), intent(out), optional :: have
-    integer(HID_T) :: space
-    integer(HSIZE_T) :: d(2), md(2)
-    integer :: e, rank
-    if (stat /= 0) return
-    if (dset < 0) then
-      call h5dopen_f(this%file_id, name, dset, e)
-      if (failed(this%path, e, 'h5dopen_f', where, stat, msg)) return
-    end if
-    call h5dget_space_f(dset, space, e)
-    if (failed(this%path, e, 'h5dget_space_f', where, stat, msg)) return
-    call h5sget_simple_extent_dims_f(space, d, md, rank)
-    call h5sclose_f(space, e)
-    rank = merge(1, 2, ncomp == 0)
-    if (present(have)) have = int(d(rank), i8)
-    if (n < 0) return
-    if (d(rank) < int(n, HSIZE_T)) then
-      stat = 1
-      msg = 'iem_h5_output: '//this%path//': '//where//' holds '//itoa(int(d(rank), i8))// &
-        ' entries, fewer than the '//itoa(n)//' the checkpoint needs'
-      return
-    end if
-    if (ncomp == 0) then
-      call h5dset_extent_f(dset, [int(n, HSIZE_T)], e)
-    else
-      call h5dset_extent_f(dset, [int(ncomp, HSIZE_T), int(n, HSIZE_T)], e)
-    end if
-    if (failed(this%path, e, 'h5dset_extent_f', where, stat, msg)) return
-  end subroutine open_cut
 
   !> Append n samples (ncomp values each; 0: a 1-D series) after the first `old` of the
   !> series dset, from whichever of r (float64), l (int64), i (int32) is given, flat (rank 0

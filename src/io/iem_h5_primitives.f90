@@ -6,10 +6,12 @@
 !> message); every procedure but `failed` does nothing once stat /= 0.
 module iem_h5_primitives
   use iem_kinds, only: wp, i8
+  use iem_strings, only: itoa
   use hdf5, only: HID_T, HSIZE_T, SIZE_T, h5kind_to_type, H5_REAL_KIND, H5_INTEGER_KIND, &
     h5pcreate_f, h5pclose_f, h5pset_fill_time_f, h5pset_chunk_f, H5P_DATASET_CREATE_F, &
     H5D_FILL_TIME_NEVER_F, h5dcreate_f, h5dclose_f, h5dset_extent_f, h5dget_space_f, &
-    h5screate_f, h5screate_simple_f, h5scopy_f, h5sclose_f, h5sselect_hyperslab_f, &
+    h5screate_f, h5screate_simple_f, h5dopen_f, h5sget_simple_extent_dims_f, h5scopy_f, &
+    h5sclose_f, h5sselect_hyperslab_f, &
     h5sselect_none_f, H5S_SCALAR_F, H5S_SELECT_SET_F, H5S_SELECT_OR_F, H5S_UNLIMITED_F, &
     h5acreate_f, h5awrite_f, h5aclose_f, h5tcopy_f, h5tset_size_f, h5tset_strpad_f, h5tclose_f, &
     H5T_FORTRAN_S1, H5T_STR_NULLPAD_F, H5T_NATIVE_INTEGER, H5T_STD_I32LE, H5T_STD_I64LE, &
@@ -18,7 +20,7 @@ module iem_h5_primitives
   implicit none
   private
   public :: failed, put_attr, create_series, prepare_append, select_runs, &
-    make_mem_space, close_space, close_dset, gid_runs
+    make_mem_space, close_space, close_dset, gid_runs, open_cut
 
   interface
     !> C H5Smodify_select (HDF5 >= 1.10.7; no Fortran wrapper in 1.10): merges the selection
@@ -376,4 +378,45 @@ contains
     end do
   end subroutine gid_runs
 
+
+  !> Open the extendible series `name` under loc (called `where` in messages about the file
+  !> path) unless open already (dset >= 0), and cut it to n entries (it must hold at least n;
+  !> n < 0: keep them all); have: what it held. Collective; nothing once stat /= 0.
+  subroutine open_cut(loc, path, name, where, ncomp, n, dset, stat, msg, have)
+    integer(HID_T), intent(in) :: loc
+    character(len=*), intent(in) :: path, name, where
+    integer, intent(in) :: ncomp
+    integer(i8), intent(in) :: n
+    integer(HID_T), intent(inout) :: dset
+    integer, intent(inout) :: stat
+    character(len=:), allocatable, intent(inout) :: msg
+    integer(i8), intent(out), optional :: have
+    integer(HID_T) :: space
+    integer(HSIZE_T) :: d(2), md(2)
+    integer :: e, rank
+    if (stat /= 0) return
+    if (dset < 0) then
+      call h5dopen_f(loc, name, dset, e)
+      if (failed(path, e, 'h5dopen_f', where, stat, msg)) return
+    end if
+    call h5dget_space_f(dset, space, e)
+    if (failed(path, e, 'h5dget_space_f', where, stat, msg)) return
+    call h5sget_simple_extent_dims_f(space, d, md, rank)
+    call h5sclose_f(space, e)
+    rank = merge(1, 2, ncomp == 0)
+    if (present(have)) have = int(d(rank), i8)
+    if (n < 0) return
+    if (d(rank) < int(n, HSIZE_T)) then
+      stat = 1
+      msg = 'iem_h5_output: '//path//': '//where//' holds '//itoa(int(d(rank), i8))// &
+        ' entries, fewer than the '//itoa(n)//' the checkpoint needs'
+      return
+    end if
+    if (ncomp == 0) then
+      call h5dset_extent_f(dset, [int(n, HSIZE_T)], e)
+    else
+      call h5dset_extent_f(dset, [int(ncomp, HSIZE_T), int(n, HSIZE_T)], e)
+    end if
+    if (failed(path, e, 'h5dset_extent_f', where, stat, msg)) return
+  end subroutine open_cut
 end module iem_h5_primitives
