@@ -11,7 +11,7 @@ module iem_fracture_kernel
   use iem_fracture_law, only: fracture_law_t, crit_tension, crit_crushing, crit_shear, no_onset
   implicit none
   private
-  public :: fracture_chunk, damaged_cell
+  public :: fracture_chunk, damaged_cell, chunk_intact
 
 contains
 
@@ -38,35 +38,12 @@ contains
     integer, intent(out) :: n_dmg
     type(cell_constants_t), intent(in), optional :: ks(:)
     integer, intent(in), optional :: mat(:)
-    real(wp) :: kap(12), knew(12), e_hi, e_lo, s_hi
+    real(wp) :: kap(12), knew(12)
     integer :: c, q, cell, mc
 
     n_dmg = 0
     dmg(1:m) = .false.
-    if (.not. any(fr%hit(c_first:c_first + m - 1))) then
-      ! the largest stretch, compression and shear of the chunk, each only when some
-      ! material has that criterion
-      e_hi = 0.0_wp
-      e_lo = 0.0_wp
-      s_hi = 0.0_wp
-      if (fr%onset_min(crit_tension) < no_onset) then
-        do c = 1, m
-          e_hi = max(e_hi, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
-        end do
-      end if
-      if (fr%onset_min(crit_crushing) < no_onset) then
-        do c = 1, m
-          e_lo = min(e_lo, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
-        end do
-      end if
-      if (fr%onset_min(crit_shear) < no_onset) then
-        do c = 1, m
-          s_hi = max(s_hi, abs(s(c, 1)), abs(s(c, 2)), abs(s(c, 3)), abs(s(c, 4)))
-        end do
-      end if
-      if (e_hi <= fr%onset_min(crit_tension) .and. -e_lo <= fr%onset_min(crit_crushing) .and. &
-          s_hi <= fr%onset_min(crit_shear)) return
-    end if
+    if (chunk_intact(fr, c_first, m, ep, s)) return
     mc = 1
     do c = 1, m
       cell = c_first + c - 1
@@ -113,6 +90,41 @@ contains
       end associate
     end do
   end subroutine fracture_chunk
+
+  !> True when no cell of the chunk of m cells from c_first has been hit and none of its edge
+  !> strains ep(:, 4) and shear measures s(:, 4) passes the smallest onset of its kind (the
+  !> chunk then keeps the elastic law and has nothing to commit): one test a criterion.
+  pure logical function chunk_intact(fr, c_first, m, ep, s) result(intact)
+    type(fracture_t), intent(in) :: fr
+    integer, intent(in) :: c_first, m
+    real(wp), intent(in) :: ep(:, :), s(:, :)
+    real(wp) :: e_hi, e_lo, s_hi
+    integer :: c
+    intact = .false.
+    if (any(fr%hit(c_first:c_first + m - 1))) return
+    ! the largest stretch, compression and shear of the chunk, each only when some material
+    ! has that criterion
+    e_hi = 0.0_wp
+    e_lo = 0.0_wp
+    s_hi = 0.0_wp
+    if (fr%onset_min(crit_tension) < no_onset) then
+      do c = 1, m
+        e_hi = max(e_hi, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
+      end do
+    end if
+    if (fr%onset_min(crit_crushing) < no_onset) then
+      do c = 1, m
+        e_lo = min(e_lo, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
+      end do
+    end if
+    if (fr%onset_min(crit_shear) < no_onset) then
+      do c = 1, m
+        s_hi = max(s_hi, abs(s(c, 1)), abs(s(c, 2)), abs(s(c, 3)), abs(s(c, 4)))
+      end do
+    end if
+    intact = e_hi <= fr%onset_min(crit_tension) .and. -e_lo <= fr%onset_min(crit_crushing) &
+             .and. s_hi <= fr%onset_min(crit_shear)
+  end function chunk_intact
 
   !> Add to diss the energy a cell of constants k and law lw releases by damage between its
   !> committed state (strain history kap, strains e_old = (ep, s) of its last accepted state

@@ -10,19 +10,16 @@
 !> paper's springs or the bending-corrected cell (iem_spring_constants).
 module iem_cell_kernel
   use iem_kinds, only: wp
-  use iem_spring_constants, only: cell_constants_t, law_bending
-  use iem_nonlinear_springs, only: nonlinear_springs_t, springs_per_cell, spring_kind, &
-                                   spring_strains
-  use iem_masing, only: masing_trial, masing_commit, masing_mirror_strain
-  use iem_kinds, only: ip
+  use iem_spring_constants, only: cell_constants_t
+  use iem_nonlinear_springs, only: nonlinear_springs_t
+  use iem_cell_laws, only: chunk
+  use iem_cell_chunk, only: chunk_edges_t, chunk_edges, chunk_elastic, chunk_general, &
+                            law_coefficients, damping_stresses
   use iem_fracture, only: fracture_t
-  use iem_fracture_kernel, only: fracture_chunk, damaged_cell
+  use iem_fracture_kernel, only: chunk_intact
   implicit none
   private
-  public :: cell_energy, cell_force, cell_forces, cell_strain_measures
-
-  !> Cells per chunk of the vectorised kernel: the chunk's work arrays stay in L1 cache.
-  integer, parameter :: chunk = 64
+  public :: cell_energy, cell_force, cell_forces, cell_strain_measures, cell_chunks
 
 contains
 
@@ -43,10 +40,12 @@ contains
     real(wp), intent(out) :: ep(4), s(4)
     real(wp) :: e(2, 4), len(4)
     integer :: q
-    e(:, 1) = [k%lx, 0.0_wp] + u(:, 2) - u(:, 1)
-    e(:, 2) = [0.0_wp, k%ly] + u(:, 3) - u(:, 2)
-    e(:, 3) = [-k%lx, 0.0_wp] + u(:, 4) - u(:, 3)
-    e(:, 4) = [0.0_wp, -k%ly] + u(:, 1) - u(:, 4)
+    ! each edge as the kernel measures it: a horizontal edge from its left to its right node,
+    ! a vertical one from its bottom to its top node, reversed for the top and left edges
+    e(:, 1) = [k%lx + (u(1, 2) - u(1, 1)), u(2, 2) - u(2, 1)]
+    e(:, 2) = [u(1, 3) - u(1, 2), k%ly + (u(2, 3) - u(2, 2))]
+    e(:, 3) = -[k%lx + (u(1, 3) - u(1, 4)), u(2, 3) - u(2, 4)]
+    e(:, 4) = -[u(1, 4) - u(1, 1), k%ly + (u(2, 4) - u(2, 1))]
     do q = 1, 4
       len(q) = sqrt(sum(e(:, q)**2))
       ep(q) = len(q)*k%il0(q) - 1.0_wp
@@ -71,14 +70,17 @@ contains
     y(3:4, :) = v
     call cell_forces(k, nodes, 4, y, beta, f, energy, damp_power)
   end subroutine cell_force
-
   !> Nodal forces f(2, :) (internal + stiffness damping) of many cells for the state
   !> y(4, :) = (u, v) of the nodes listed in cell_nodes, with the strain energy and the
   !> damping power summed over the counted cells (those whose first corner is among the
-  !> first n_owned nodes). Each node's force is summed over its cells in
-  !> the order of cell_nodes' columns, so the same cells in the same order give bitwise the same
-  !> forces whatever else the list holds. Cells go in chunks whose corner values are first
-  !> gathered into small unit-stride arrays, so the compiler vectorises the kernel.
+  !> first n_owned nodes). Each node's force is summed over its cells in the order of
+  !> cell_nodes' columns, and each cell's corner forces depend on its corners' values only,
+  !> so the same cells in the same order give bitwise the same forces whatever else the list
+  !> holds. Cells go in chunks of consecutive cells of a grid row (each sharing its left edge
+  !> with the right edge of the one before, as the lattice lists them): the chunk's two node
+  !> rows are gathered into unit-stride arrays, every edge's length and unit vector is
+  !> computed once, and each node's force is gathered from the chunk's cells; the loops
+  !> vectorise. Holes and the ends of a rank's rows only end chunks early.
   !> The stiffness damping acts on the velocities in rows damp_row:damp_row+1 of y (default 3,
   !> the velocities themselves; 5 for the filtered velocities of capped damping); the damping
   !> power is always taken with the velocities (rows 3:4). With nl (nonlinear springs of the
@@ -94,25 +96,40 @@ contains
   !> has begun or begins follow the damaged law, and with commit their damage is committed at
   !> time (iem_fracture_kernel).
   pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
-                              nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time)
+                              nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, plan)
     type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: cell_nodes(:, :)
+    integer, intent(in), contiguous :: cell_nodes(:, :)
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
     integer, intent(in) :: n_owned
-    real(wp), intent(in) :: y(:, :), beta
-    real(wp), intent(out) :: f(:, :), energy, damp_power
+    real(wp), intent(in), contiguous :: y(:, :)
+    real(wp), intent(in) :: beta
+    real(wp), intent(out), contiguous :: f(:, :)
+    real(wp), intent(out) :: energy, damp_power
     integer, intent(in), optional :: damp_row
     type(nonlinear_springs_t), intent(inout), optional :: nl
     logical, intent(in), optional :: commit
     type(cell_constants_t), intent(in), optional :: ks(:)
-    integer, intent(in), optional :: cell_mat(:)
-    real(wp), intent(out), optional :: cell_energy(:), cell_power(:)
+    integer, intent(in), optional, contiguous :: cell_mat(:)
+    real(wp), intent(out), optional, contiguous :: cell_energy(:), cell_power(:)
     type(fracture_t), intent(inout), optional :: fr
     real(wp), intent(in), optional :: time
-    real(wp) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4), px(chunk, 4), py(chunk, 4)
-    real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
-    integer :: c0, m, c, q, nc, node, row
-    logical :: damped, filtered, accept, keep_energy, keep_power
+    !> The chunks of cell_nodes (cell_chunks; made here when absent).
+    integer, intent(in), optional, contiguous :: plan(:, :)
+    integer, allocatable :: own_plan(:, :)
+    ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
+    ! (w) and, with filtered damping, the velocities (p)
+    integer :: bn(0:chunk), tn(0:chunk)
+    real(wp) :: bu(0:chunk, 2), tu(0:chunk, 2), bw(0:chunk, 2), tw(0:chunk, 2)
+    real(wp) :: bp(0:chunk, 2), tp(0:chunk, 2)
+    ! the chunk's edges, its cells' constants, corner forces, energies, powers, strains, and
+    ! those of the general path (fracture: only its damaged cells are taken)
+    type(chunk_edges_t) :: ed
+    real(wp) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
+    real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk), ep(chunk, 4), s(chunk, 4)
+    real(wp) :: gx(chunk, 4), gy(chunk, 4), gen(chunk), gpw(chunk)
+    logical :: dmg(chunk)
+    integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0
+    logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
 
     nc = size(cell_nodes, 2)
     keep_energy = .false.
@@ -125,413 +142,251 @@ contains
     row = 3
     if (present(damp_row)) row = damp_row
     filtered = damped .and. row /= 3
-    vx = 0.0_wp
-    vy = 0.0_wp
-    px = 0.0_wp
-    py = 0.0_wp
+    by_material = present(ks) .and. present(cell_mat)
+    bw = 0.0_wp
+    tw = 0.0_wp
+    bp = 0.0_wp
+    tp = 0.0_wp
+    do i = 1, chunk
+      lc(i, :) = law_coefficients(k)
+    end do
+    ! without damping these stay 0
+    hd = 0.0_wp
+    ud = 0.0_wp
+    pw = 0.0_wp
+    ! the sums over the counted cells: only when the cells' energies are not kept apart
+    sums = .not. present(cell_energy) .or. keep_energy
     f = 0.0_wp
     energy = 0.0_wp
     damp_power = 0.0_wp
-    do c0 = 1, nc, chunk
-      m = min(chunk, nc - c0 + 1)
-      do q = 1, 4
-        do c = 1, m
-          ux(c, q) = y(1, cell_nodes(q, c0 + c - 1))
-          uy(c, q) = y(2, cell_nodes(q, c0 + c - 1))
-        end do
-      end do
-      if (damped) then
-        do q = 1, 4
-          do c = 1, m
-            vx(c, q) = y(row, cell_nodes(q, c0 + c - 1))
-            vy(c, q) = y(row + 1, cell_nodes(q, c0 + c - 1))
-          end do
-        end do
-      end if
-      if (filtered) then
-        do q = 1, 4
-          do c = 1, m
-            px(c, q) = y(3, cell_nodes(q, c0 + c - 1))
-            py(c, q) = y(4, cell_nodes(q, c0 + c - 1))
-          end do
-        end do
-      end if
-      if (present(fr)) then
-        if (present(ks) .and. present(cell_mat)) then
-          call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
-                            pw, c_first=c0, accept=accept, ks=ks, mat=cell_mat(c0:c0 + m - 1), &
-                            fr=fr, time=time)
-        else
-          call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
-                            pw, c_first=c0, accept=accept, fr=fr, time=time)
-        end if
-      else if (present(ks) .and. present(cell_mat)) then
-        if (present(nl)) then
-          call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
-                            pw, nl, c0, accept, ks, cell_mat(c0:c0 + m - 1))
-        else
-          call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, &
-                            pw, ks=ks, mat=cell_mat(c0:c0 + m - 1))
-        end if
-      else if (present(nl)) then
-        call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, pw, &
-                          nl, c0, accept)
+    if (.not. present(plan)) own_plan = cell_chunks(cell_nodes)
+    do ic = 1, n_chunks()
+      call chunk_of(ic, c0, m, consec)
+      b0 = cell_nodes(1, c0)
+      t0 = cell_nodes(4, c0)
+      if (consec) then
+        call gather_block(y, 1, m, b0, t0, bu, tu)
+        if (damped) call gather_block(y, row, m, b0, t0, bw, tw)
+        if (filtered) call gather_block(y, 3, m, b0, t0, bp, tp)
       else
-        call chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, en, pw)
-      end if
-      do c = 1, m
-        do q = 1, 4
-          node = cell_nodes(q, c0 + c - 1)
-          f(1, node) = f(1, node) + fx(c, q)
-          f(2, node) = f(2, node) + fy(c, q)
+        bn(0) = b0
+        tn(0) = t0
+        do i = 1, m
+          bn(i) = cell_nodes(2, c0 + i - 1)
+          tn(i) = cell_nodes(3, c0 + i - 1)
         end do
-        if (cell_nodes(1, c0 + c - 1) <= n_owned) then
-          energy = energy + en(c)
-          damp_power = damp_power + pw(c)
+        call gather_rows(y, 1, m, bn, tn, bu, tu)
+        if (damped) call gather_rows(y, row, m, bn, tn, bw, tw)
+        if (filtered) call gather_rows(y, 3, m, bn, tn, bp, tp)
+      end if
+      call chunk_edges(k, m, bu, tu, ed)
+      if (present(nl)) then
+        if (by_material) then
+          call chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, fx, fy, en, pw, &
+                             dmg, n_dmg, nl, c0, accept, ks, cell_mat(c0:c0 + m - 1))
+        else
+          call chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, fx, fy, en, pw, &
+                             dmg, n_dmg, nl, c0, accept)
         end if
-      end do
+      else
+        if (by_material) then
+          do i = 1, m
+            lc(i, :) = law_coefficients(ks(cell_mat(c0 + i - 1)))
+          end do
+        end if
+        if (filtered) then
+          call damping_stresses(k, m, ed, lc, beta, bw, tw, bp, tp, hd, ud, pw)
+        else if (damped) then
+          call damping_stresses(k, m, ed, lc, beta, bw, tw, bw, tw, hd, ud, pw)
+        end if
+        call chunk_elastic(k, m, ed, lc, hd, ud, fx, fy, en, ep, s)
+        if (present(fr)) then
+          ! cells that fracture has reached take the general path's damaged law
+          if (.not. chunk_intact(fr, c0, m, ep, s)) then
+            if (by_material) then
+              call chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, gx, gy, &
+                                 gen, gpw, dmg, n_dmg, c_first=c0, accept=accept, ks=ks, &
+                                 mat=cell_mat(c0:c0 + m - 1), fr=fr, time=time)
+            else
+              call chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, gx, gy, &
+                                 gen, gpw, dmg, n_dmg, c_first=c0, accept=accept, fr=fr, &
+                                 time=time)
+            end if
+            do i = 1, m
+              if (.not. dmg(i)) cycle
+              fx(i, :) = gx(i, :)
+              fy(i, :) = gy(i, :)
+              en(i) = gen(i)
+              pw(i) = gpw(i)
+            end do
+          end if
+        end if
+      end if
+      if (consec) then
+        call add_block_forces(m, f(:, b0:b0 + m), f(:, t0:t0 + m), fx, fy)
+      else
+        call add_node_forces(m, bn, tn, fx, fy, f)
+      end if
+      if (sums) then
+        do i = 1, m
+          if (cell_nodes(1, c0 + i - 1) <= n_owned) then
+            energy = energy + en(i)
+            damp_power = damp_power + pw(i)
+          end if
+        end do
+      else if (damped) then
+        do i = 1, m
+          if (cell_nodes(1, c0 + i - 1) <= n_owned) damp_power = damp_power + pw(i)
+        end do
+      end if
       if (keep_energy) cell_energy(c0:c0 + m - 1) = en(1:m)
       if (keep_power) cell_power(c0:c0 + m - 1) = pw(1:m)
     end do
-  end subroutine cell_forces
-
-  !> Kernel over one chunk of m cells with corner values in unit-stride arrays (cell index
-  !> first), as branch-free loops the compiler vectorises: geometry and strain measures; the
-  !> cell law; fracture (only with fr); damping (only when damped); corner forces.
-  pure subroutine chunk_forces(k, m, damped, filtered, beta, ux, uy, vx, vy, px, py, fx, fy, &
-                               en, pw, nl, c_first, accept, ks, mat, fr, time)
-    type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: m
-    logical, intent(in) :: damped, filtered
-    real(wp), intent(in) :: beta
-    real(wp), intent(in) :: ux(chunk, 4), uy(chunk, 4), vx(chunk, 4), vy(chunk, 4)
-    real(wp), intent(in) :: px(chunk, 4), py(chunk, 4)
-    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
-    !> Nonlinear springs, the index of the chunk's first cell, and whether to commit.
-    type(nonlinear_springs_t), intent(inout), optional :: nl
-    integer, intent(in), optional :: c_first
-    logical, intent(in), optional :: accept
-    !> Several materials: the constants of each and the material of each cell of the chunk.
-    type(cell_constants_t), intent(in), optional :: ks(:)
-    integer, intent(in), optional :: mat(:)
-    !> Fracture state and the time of the state (committed with accept).
-    type(fracture_t), intent(inout), optional :: fr
-    real(wp), intent(in), optional :: time
-    ! per cell: unit edge vectors e, shear gradients a (d s/d a) and b (d s/d b), strains ep
-    ! and shear measures s, generalised stresses g (edges) and t (corners), and the rates
-    real(wp) :: ex(chunk, 4), ey(chunk, 4), ax(chunk, 4), ay(chunk, 4)
-    real(wp) :: bx(chunk, 4), by(chunk, 4), ep(chunk, 4), s(chunk, 4), g(chunk, 4), t(chunk, 4)
-    real(wp) :: d(chunk, 4), r(chunk, 4), gd(chunk, 4), td(chunk, 4)
-    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, l1, l2, l3, l4, i1, i2, i3, i4
-    real(wp) :: s1, s2, s3, s4, ilx, ily
-    real(wp) :: fe(chunk, 4), fs(chunk, 4)
-    logical :: dmg(chunk)
-    integer :: c, n_dmg
-
-    ilx = k%il0(1)
-    ily = k%il0(2)
-    do c = 1, m
-      ! edge vectors (current), lengths, unit vectors, strains
-      e1x = k%lx + ux(c, 2) - ux(c, 1)
-      e1y = uy(c, 2) - uy(c, 1)
-      e2x = ux(c, 3) - ux(c, 2)
-      e2y = k%ly + uy(c, 3) - uy(c, 2)
-      e3x = -k%lx + ux(c, 4) - ux(c, 3)
-      e3y = uy(c, 4) - uy(c, 3)
-      e4x = ux(c, 1) - ux(c, 4)
-      e4y = -k%ly + uy(c, 1) - uy(c, 4)
-      l1 = sqrt(e1x**2 + e1y**2)
-      l2 = sqrt(e2x**2 + e2y**2)
-      l3 = sqrt(e3x**2 + e3y**2)
-      l4 = sqrt(e4x**2 + e4y**2)
-      i1 = 1.0_wp/l1
-      i2 = 1.0_wp/l2
-      i3 = 1.0_wp/l3
-      i4 = 1.0_wp/l4
-      ep(c, :) = [l1*ilx - 1.0_wp, l2*ily - 1.0_wp, l3*ilx - 1.0_wp, l4*ily - 1.0_wp]
-      e1x = e1x*i1
-      e1y = e1y*i1
-      e2x = e2x*i2
-      e2y = e2y*i2
-      e3x = e3x*i3
-      e3y = e3y*i3
-      e4x = e4x*i4
-      e4y = e4y*i4
-      ! shear measures s = sin(gamma) at corners 1..4 (corner q joins edges q and q-1)
-      s1 = -(e1x*e4x + e1y*e4y)
-      s2 = -(e2x*e1x + e2y*e1y)
-      s3 = -(e3x*e2x + e3y*e2y)
-      s4 = -(e4x*e3x + e4y*e3y)
-      s(c, :) = [s1, s2, s3, s4]
-      ex(c, :) = [e1x, e2x, e3x, e4x]
-      ey(c, :) = [e1y, e2y, e3y, e4y]
-      ! d s_q / d a (a: edge q) and d s_q / d b (b: reversed edge q-1)
-      ax(c, :) = [(-e4x - s1*e1x)*i1, (-e1x - s2*e2x)*i2, (-e2x - s3*e3x)*i3, (-e3x - s4*e4x)*i4]
-      ay(c, :) = [(-e4y - s1*e1y)*i1, (-e1y - s2*e2y)*i2, (-e2y - s3*e3y)*i3, (-e3y - s4*e4y)*i4]
-      bx(c, :) = [(e1x + s1*e4x)*i4, (e2x + s2*e1x)*i1, (e3x + s3*e2x)*i2, (e4x + s4*e3x)*i3]
-      by(c, :) = [(e1y + s1*e4y)*i4, (e2y + s2*e1y)*i1, (e3y + s3*e2y)*i2, (e4y + s4*e3y)*i3]
-    end do
-    if (present(nl)) then
-      call nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat)
-    else
-      if (present(ks)) then
-        call cell_law_mixed(ks, mat, m, ep, s, g, t)
-      else
-        call cell_law(k, m, ep, s, g, t)
-      end if
-      do c = 1, m
-        en(c) = 0.5_wp*sum(g(c, :)*ep(c, :) + t(c, :)*s(c, :))
-      end do
-    end if
-    n_dmg = 0
-    if (present(fr)) then
-      if (present(ks)) then
-        call fracture_chunk(fr, c_first, m, k, ep, s, accept, time, g, t, en, fe, fs, dmg, &
-                            n_dmg, ks, mat)
-      else
-        call fracture_chunk(fr, c_first, m, k, ep, s, accept, time, g, t, en, fe, fs, dmg, &
-                            n_dmg)
-      end if
-    end if
-    pw(1:m) = 0.0_wp
-    if (damped) then
-      call strain_rates(vx, vy, d, r)
-      if (present(ks)) then
-        call cell_law_mixed(ks, mat, m, d, r, gd, td)
-      else
-        call cell_law(k, m, d, r, gd, td)
-      end if
-      if (n_dmg > 0) then
-        do c = 1, m
-          if (.not. dmg(c)) cycle
-          if (present(ks)) then
-            call damaged_cell(ks(mat(c)), d(c, :), r(c, :), fe(c, :), fs(c, :), gd(c, :), &
-                              td(c, :))
-          else
-            call damaged_cell(k, d(c, :), r(c, :), fe(c, :), fs(c, :), gd(c, :), td(c, :))
-          end if
-        end do
-      end if
-      ! the damping power is f_damp . v: with filtered damping velocities, the strain rates of
-      ! the velocities themselves are needed too
-      if (filtered) call strain_rates(px, py, d, r)
-      do c = 1, m
-        pw(c) = beta*sum(gd(c, :)*d(c, :) + td(c, :)*r(c, :))
-        g(c, :) = g(c, :) + beta*gd(c, :)
-        t(c, :) = t(c, :) + beta*td(c, :)
-      end do
-    end if
-    do c = 1, m
-      ! edge forces per unit reference length along the unit vectors: corner q+1 gets
-      ! +g_q e_q + t_q a_q, corner q gets -g_q e_q - t_q (a_q + b_q), corner q-1 gets t_q b_q
-      g(c, :) = g(c, :)*[ilx, ily, ilx, ily]
-      fx(c, 1) = -g(c, 1)*ex(c, 1) - t(c, 1)*(ax(c, 1) + bx(c, 1)) + g(c, 4)*ex(c, 4) &
-                 + t(c, 4)*ax(c, 4) + t(c, 2)*bx(c, 2)
-      fy(c, 1) = -g(c, 1)*ey(c, 1) - t(c, 1)*(ay(c, 1) + by(c, 1)) + g(c, 4)*ey(c, 4) &
-                 + t(c, 4)*ay(c, 4) + t(c, 2)*by(c, 2)
-      fx(c, 2) = -g(c, 2)*ex(c, 2) - t(c, 2)*(ax(c, 2) + bx(c, 2)) + g(c, 1)*ex(c, 1) &
-                 + t(c, 1)*ax(c, 1) + t(c, 3)*bx(c, 3)
-      fy(c, 2) = -g(c, 2)*ey(c, 2) - t(c, 2)*(ay(c, 2) + by(c, 2)) + g(c, 1)*ey(c, 1) &
-                 + t(c, 1)*ay(c, 1) + t(c, 3)*by(c, 3)
-      fx(c, 3) = -g(c, 3)*ex(c, 3) - t(c, 3)*(ax(c, 3) + bx(c, 3)) + g(c, 2)*ex(c, 2) &
-                 + t(c, 2)*ax(c, 2) + t(c, 4)*bx(c, 4)
-      fy(c, 3) = -g(c, 3)*ey(c, 3) - t(c, 3)*(ay(c, 3) + by(c, 3)) + g(c, 2)*ey(c, 2) &
-                 + t(c, 2)*ay(c, 2) + t(c, 4)*by(c, 4)
-      fx(c, 4) = -g(c, 4)*ex(c, 4) - t(c, 4)*(ax(c, 4) + bx(c, 4)) + g(c, 3)*ex(c, 3) &
-                 + t(c, 3)*ax(c, 3) + t(c, 1)*bx(c, 1)
-      fy(c, 4) = -g(c, 4)*ey(c, 4) - t(c, 4)*(ay(c, 4) + by(c, 4)) + g(c, 3)*ey(c, 3) &
-                 + t(c, 3)*ay(c, 3) + t(c, 1)*by(c, 1)
-    end do
   contains
 
-    !> Edge strain rates d and shear rates r of the chunk's cells for corner velocities.
-    pure subroutine strain_rates(wx, wy, d_, r_)
-      real(wp), intent(in) :: wx(chunk, 4), wy(chunk, 4)
-      real(wp), intent(out) :: d_(chunk, 4), r_(chunk, 4)
-      real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y
-      integer :: i
-      do i = 1, m
-        q1x = wx(i, 2) - wx(i, 1)
-        q1y = wy(i, 2) - wy(i, 1)
-        q2x = wx(i, 3) - wx(i, 2)
-        q2y = wy(i, 3) - wy(i, 2)
-        q3x = wx(i, 4) - wx(i, 3)
-        q3y = wy(i, 4) - wy(i, 3)
-        q4x = wx(i, 1) - wx(i, 4)
-        q4y = wy(i, 1) - wy(i, 4)
-        d_(i, :) = [(ex(i, 1)*q1x + ey(i, 1)*q1y)*ilx, (ex(i, 2)*q2x + ey(i, 2)*q2y)*ily, &
-                    (ex(i, 3)*q3x + ey(i, 3)*q3y)*ilx, (ex(i, 4)*q4x + ey(i, 4)*q4y)*ily]
-        r_(i, :) = [ax(i, 1)*q1x + ay(i, 1)*q1y - bx(i, 1)*q4x - by(i, 1)*q4y, &
-                    ax(i, 2)*q2x + ay(i, 2)*q2y - bx(i, 2)*q1x - by(i, 2)*q1y, &
-                    ax(i, 3)*q3x + ay(i, 3)*q3y - bx(i, 3)*q2x - by(i, 3)*q2y, &
-                    ax(i, 4)*q4x + ay(i, 4)*q4y - bx(i, 4)*q3x - by(i, 4)*q3y]
-      end do
-    end subroutine strain_rates
-  end subroutine chunk_forces
+    !> The number of chunks.
+    pure integer function n_chunks()
+      if (present(plan)) then
+        n_chunks = size(plan, 2)
+      else
+        n_chunks = size(own_plan, 2)
+      end if
+    end function n_chunks
 
-  !> The nonlinear law of the paper's cell on a chunk whose first cell is c_first: each
-  !> spring's normalised stress psi from its committed history at its current strain (and,
-  !> with accept, the history moved there), the generalised stresses g = 2 ce psi_edge +
-  !> 2 ch (psi_Poisson at both ends of the edge), t = 2 cg psi_shear, and the work done on the
-  !> cell's springs up to this state (trapezoidal increments from the committed state).
-  pure subroutine nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat)
-    type(nonlinear_springs_t), intent(inout) :: nl
-    integer, intent(in) :: c_first, m
-    real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
-    logical, intent(in) :: accept
-    real(wp), intent(out) :: g(chunk, 4), t(chunk, 4), en(chunk)
-    !> Material of each cell of the chunk (absent: material 1).
-    integer, intent(in), optional :: mat(:)
-    real(wp) :: e(springs_per_cell), psi(springs_per_cell), tan, dw, e_old, psi_old, er, x
-    integer :: c, j, i, kind, mc
-    logical :: fast
-    mc = 1
-    do c = 1, m
-      if (present(mat)) mc = mat(c)
-      e = spring_strains(ep(c, :), s(c, :))
-      en(c) = 0.0_wp
-      do j = 1, springs_per_cell
-        i = springs_per_cell*(c_first + c - 2) + j
-        kind = spring_kind(j)
-        associate(st => nl%state)
-          e_old = st%strain(i)
-          psi_old = st%stress(i)
-          fast = .true.
-          if (e(j) == e_old) then
-            psi(j) = psi_old
-          else if (st%count(i) == 0 .and. (st%dir(i) == 0 .or. &
-                   real(st%dir(i), wp)*(e(j) - e_old) > 0.0_wp)) then
-            ! fast path: a spring on its skeleton that keeps going the same way
-            er = merge(nl%er_pos(kind, mc), nl%er_neg(kind, mc), e(j) >= 0.0_wp)
-            psi(j) = e(j)/(1.0_wp + abs(e(j))/er)
-          else if (on_branch(st%count(i), st%dir(i), e(j), e_old, st%e_rev(:, i), &
-                             nl%er_pos(kind, mc), nl%er_neg(kind, mc))) then
-            ! fast path: a spring that keeps going the same way on its current Masing branch,
-            ! short of the point where that branch ends (as masing_trial would find)
-            associate(n => st%count(i))
-              x = 0.5_wp*(e(j) - st%e_rev(n, i))
-              psi(j) = st%s_rev(n, i) + 2.0_wp*(x/(1.0_wp + abs(x)/ &
-                       (0.5_wp*(nl%er_pos(kind, mc) + nl%er_neg(kind, mc)))))
-            end associate
-          else
-            fast = .false.
-          end if
-          if (accept) then
-            if (fast) then
-              ! no reversal and no branch ends: the commit moves along the same curve (what
-              ! masing_commit does in this case, bit for bit)
-              if (e(j) /= e_old) then
-                st%dir(i) = merge(1_ip, -1_ip, e(j) > e_old)
-                st%strain(i) = e(j)
-                st%stress(i) = psi(j)
-                st%e_max_pos(i) = max(st%e_max_pos(i), e(j))
-                st%e_max_neg(i) = min(st%e_max_neg(i), e(j))
-              end if
-            else
-              call masing_commit(e(j), 1.0_wp, nl%er_pos(kind, mc), nl%er_neg(kind, mc), &
-                                 st%strain(i), st%stress(i), st%dir(i), st%count(i), &
-                                 st%e_rev(:, i), st%s_rev(:, i), st%e_max_pos(i), &
-                                 st%e_max_neg(i))
-              ! the committed stress is bit for bit the trial stress at the same strain
-              psi(j) = st%stress(i)
-            end if
-          else if (.not. fast) then
-            call masing_trial(e(j), 1.0_wp, nl%er_pos(kind, mc), nl%er_neg(kind, mc), &
-                              st%strain(i), st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
-                              st%s_rev(:, i), psi(j), tan)
-          end if
-          dw = 0.5_wp*nl%c2(kind, mc)*(psi_old + psi(j))*(e(j) - e_old)
-          if (accept) then
-            nl%work(i) = nl%work(i) + dw
-            en(c) = en(c) + nl%work(i)
-          else
-            en(c) = en(c) + nl%work(i) + dw
-          end if
-        end associate
+    !> Chunk j: its first cell, its number of cells, whether its node rows are consecutive.
+    pure subroutine chunk_of(j, first, n, cons)
+      integer, intent(in) :: j
+      integer, intent(out) :: first, n
+      logical, intent(out) :: cons
+      if (present(plan)) then
+        first = plan(1, j)
+        n = plan(2, j)
+        cons = plan(3, j) == 1
+      else
+        first = own_plan(1, j)
+        n = own_plan(2, j)
+        cons = own_plan(3, j) == 1
+      end if
+    end subroutine chunk_of
+  end subroutine cell_forces
+
+  !> The chunks of a cell list for cell_forces: plan(:, j) = (first cell, number of cells,
+  !> 1 when the chunk's bottom and top node rows are each numbered consecutively, else 0).
+  !> A chunk holds up to 64 consecutive cells each sharing its left edge with the right edge
+  !> of the one before (a run of a grid row), so holes and a rank's row ends end chunks.
+  pure function cell_chunks(cell_nodes) result(plan)
+    integer, intent(in) :: cell_nodes(:, :)
+    integer, allocatable :: plan(:, :)
+    integer, allocatable :: work(:, :)
+    integer :: nc, c0, m, n
+    nc = size(cell_nodes, 2)
+    allocate(work(3, nc))
+    n = 0
+    c0 = 1
+    do while (c0 <= nc)
+      m = 1
+      do while (m < chunk .and. c0 + m <= nc)
+        if (cell_nodes(1, c0 + m) /= cell_nodes(2, c0 + m - 1) .or. &
+            cell_nodes(4, c0 + m) /= cell_nodes(3, c0 + m - 1)) exit
+        m = m + 1
       end do
-      g(c, :) = nl%c2(1, mc)*psi(1:4) + nl%c2(2, mc)*(psi(5:8) + cshift(psi(5:8), 1))
-      t(c, :) = nl%c2(3, mc)*psi(9:12)
+      n = n + 1
+      work(1, n) = c0
+      work(2, n) = m
+      work(3, n) = 0
+      ! consecutive node rows: each cell's right corners follow its left ones
+      if (all(cell_nodes(2, c0:c0 + m - 1) - cell_nodes(1, c0:c0 + m - 1) == 1) .and. &
+          all(cell_nodes(3, c0:c0 + m - 1) - cell_nodes(4, c0:c0 + m - 1) == 1)) work(3, n) = 1
+      c0 = c0 + m
     end do
-  end subroutine nonlinear_law
+    plan = work(:, 1:n)
+  end function cell_chunks
 
-  !> Whether a spring with n > 0 reversal points, last moving in direction dir from its
-  !> committed strain e_c, reaches the trial strain e by going on along its current branch
-  !> (the one from reversal point n) without passing that branch's aim: the previous reversal
-  !> point, or for n = 1 the mirror of the first one (docs/nonlinear.md, section 4).
-  pure logical function on_branch(n, dir, e, e_c, e_rev, er_pos, er_neg)
-    integer(ip), intent(in) :: n, dir
-    real(wp), intent(in) :: e, e_c, e_rev(:), er_pos, er_neg
-    real(wp) :: aim
-    integer :: d
-    on_branch = .false.
-    if (n <= 0 .or. dir == 0) return
-    if (real(dir, wp)*(e - e_c) <= 0.0_wp) return
-    if (n >= 2) then
-      aim = e_rev(n - 1)
-      d = merge(1, -1, aim > e_rev(n))
+  !> Rows r, r+1 of y at the nodes b0..b0+m (bottom) and t0..t0+m (top) into wb, wt(0:m, 2).
+  pure subroutine gather_block(y, r, m, b0, t0, wb, wt)
+    real(wp), intent(in), contiguous :: y(:, :)
+    integer, intent(in) :: r, m, b0, t0
+    real(wp), intent(inout) :: wb(0:chunk, 2), wt(0:chunk, 2)
+    if (size(y, 1) == 4) then
+      call block_rows(4, y(:, b0:b0 + m), y(:, t0:t0 + m), wb, wt)
     else
-      aim = masing_mirror_strain(e_rev(1), er_pos, er_neg)
-      d = merge(-1, 1, e_rev(1) > 0.0_wp)
+      call block_rows(size(y, 1), y(:, b0:b0 + m), y(:, t0:t0 + m), wb, wt)
     end if
-    on_branch = d == dir .and. real(d, wp)*(e - aim) < 0.0_wp
-  end function on_branch
+  contains
 
-  !> The elastic cell law on a chunk: generalised stresses g = dPi/d eps (edges) and
-  !> t = dPi/d s (corners) from edge strains ep and corner shear measures s.
-  pure subroutine cell_law(k, m, ep, s, g, t)
-    type(cell_constants_t), intent(in) :: k
+    !> The two rows from blocks of consecutive nodes (ns values a node).
+    pure subroutine block_rows(ns, yb, yt, vb, vt)
+      integer, intent(in) :: ns
+      real(wp), intent(in) :: yb(ns, 0:m), yt(ns, 0:m)
+      real(wp), intent(inout) :: vb(0:chunk, 2), vt(0:chunk, 2)
+      integer :: j
+      do j = 0, m
+        vb(j, 1) = yb(r, j)
+        vb(j, 2) = yb(r + 1, j)
+        vt(j, 1) = yt(r, j)
+        vt(j, 2) = yt(r + 1, j)
+      end do
+    end subroutine block_rows
+  end subroutine gather_block
+
+  !> Rows r, r+1 of y at the chunk's bottom and top nodes bn(0:m), tn(0:m) into wb, wt(0:m, 2).
+  pure subroutine gather_rows(y, r, m, bn, tn, wb, wt)
+    real(wp), intent(in), contiguous :: y(:, :)
+    integer, intent(in) :: r, m, bn(0:chunk), tn(0:chunk)
+    real(wp), intent(inout) :: wb(0:chunk, 2), wt(0:chunk, 2)
+    integer :: i
+    do i = 0, m
+      wb(i, 1) = y(r, bn(i))
+      wb(i, 2) = y(r + 1, bn(i))
+      wt(i, 1) = y(r, tn(i))
+      wt(i, 2) = y(r + 1, tn(i))
+    end do
+  end subroutine gather_rows
+
+  !> Add the corner forces fx, fy(cell, corner) of a chunk to its nodes' forces f, each node's
+  !> in cell order: bottom node i gets corner 2 of cell i, then corner 1 of cell i + 1; top
+  !> node i corner 3 of cell i, then corner 4 of cell i + 1.
+  pure subroutine add_node_forces(m, bn, tn, fx, fy, f)
+    integer, intent(in) :: m, bn(0:chunk), tn(0:chunk)
+    real(wp), intent(in) :: fx(chunk, 4), fy(chunk, 4)
+    real(wp), intent(inout), contiguous :: f(:, :)
+    integer :: i
+    f(1, bn(0)) = f(1, bn(0)) + fx(1, 1)
+    f(2, bn(0)) = f(2, bn(0)) + fy(1, 1)
+    f(1, tn(0)) = f(1, tn(0)) + fx(1, 4)
+    f(2, tn(0)) = f(2, tn(0)) + fy(1, 4)
+    do i = 1, m - 1
+      f(1, bn(i)) = f(1, bn(i)) + fx(i, 2) + fx(i + 1, 1)
+      f(2, bn(i)) = f(2, bn(i)) + fy(i, 2) + fy(i + 1, 1)
+      f(1, tn(i)) = f(1, tn(i)) + fx(i, 3) + fx(i + 1, 4)
+      f(2, tn(i)) = f(2, tn(i)) + fy(i, 3) + fy(i + 1, 4)
+    end do
+    f(1, bn(m)) = f(1, bn(m)) + fx(m, 2)
+    f(2, bn(m)) = f(2, bn(m)) + fy(m, 2)
+    f(1, tn(m)) = f(1, tn(m)) + fx(m, 3)
+    f(2, tn(m)) = f(2, tn(m)) + fy(m, 3)
+  end subroutine add_node_forces
+
+  !> add_node_forces for consecutively numbered node rows: the forces fb, ft of the bottom
+  !> and top rows' nodes 0..m.
+  pure subroutine add_block_forces(m, fb, ft, fx, fy)
     integer, intent(in) :: m
-    real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
-    real(wp), intent(out) :: g(chunk, 4), t(chunk, 4)
-    real(wp) :: ce2, ch2, cg2, mx, my, sx, sy, dx, dy, gm
-    integer :: c
-    if (k%law == law_bending) then
-      ! Pi = 2ce(mx^2+my^2) + 4ch(mx+my)^2 + 4cg gm^2 + cb(dx^2+dy^2): mean strains mx, my, mean
-      ! shear gm (signs that make a uniform shear equal at every corner), bending measures
-      ! dx = eps_top - eps_bottom, dy = eps_right - eps_left
-      do c = 1, m
-        mx = 0.5_wp*(ep(c, 1) + ep(c, 3))
-        my = 0.5_wp*(ep(c, 2) + ep(c, 4))
-        dx = ep(c, 3) - ep(c, 1)
-        dy = ep(c, 2) - ep(c, 4)
-        gm = 0.25_wp*(s(c, 1) - s(c, 2) + s(c, 3) - s(c, 4))
-        sx = 2.0_wp*k%ce*mx + 4.0_wp*k%ch*(mx + my)
-        sy = 2.0_wp*k%ce*my + 4.0_wp*k%ch*(mx + my)
-        g(c, :) = [sx - 2.0_wp*k%cb*dx, sy + 2.0_wp*k%cb*dy, sx + 2.0_wp*k%cb*dx, &
-                   sy - 2.0_wp*k%cb*dy]
-        t(c, :) = 2.0_wp*k%cg*gm*[1.0_wp, -1.0_wp, 1.0_wp, -1.0_wp]
-      end do
-    else
-      ce2 = 2.0_wp*k%ce
-      ch2 = 2.0_wp*k%ch
-      cg2 = 2.0_wp*k%cg
-      do c = 1, m
-        g(c, :) = [ce2*ep(c, 1) + ch2*(2.0_wp*ep(c, 1) + ep(c, 4) + ep(c, 2)), &
-                   ce2*ep(c, 2) + ch2*(2.0_wp*ep(c, 2) + ep(c, 1) + ep(c, 3)), &
-                   ce2*ep(c, 3) + ch2*(2.0_wp*ep(c, 3) + ep(c, 2) + ep(c, 4)), &
-                   ce2*ep(c, 4) + ch2*(2.0_wp*ep(c, 4) + ep(c, 3) + ep(c, 1))]
-        t(c, :) = cg2*s(c, :)
-      end do
-    end if
-  end subroutine cell_law
-
-  !> The elastic cell law on a chunk of cells of several materials: cell c follows the
-  !> constants ks(mat(c)) (the same arithmetic as cell_law, cell by cell).
-  pure subroutine cell_law_mixed(ks, mat, m, ep, s, g, t)
-    type(cell_constants_t), intent(in) :: ks(:)
-    integer, intent(in) :: mat(:), m
-    real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
-    real(wp), intent(out) :: g(chunk, 4), t(chunk, 4)
-    real(wp) :: e1(chunk, 4), s1(chunk, 4), g1(chunk, 4), t1(chunk, 4)
-    integer :: c
-    e1 = 0.0_wp
-    s1 = 0.0_wp
-    do c = 1, m
-      e1(1, :) = ep(c, :)
-      s1(1, :) = s(c, :)
-      call cell_law(ks(mat(c)), 1, e1, s1, g1, t1)
-      g(c, :) = g1(1, :)
-      t(c, :) = t1(1, :)
+    real(wp), intent(inout) :: fb(2, 0:m), ft(2, 0:m)
+    real(wp), intent(in) :: fx(chunk, 4), fy(chunk, 4)
+    integer :: j
+    fb(1, 0) = fb(1, 0) + fx(1, 1)
+    fb(2, 0) = fb(2, 0) + fy(1, 1)
+    ft(1, 0) = ft(1, 0) + fx(1, 4)
+    ft(2, 0) = ft(2, 0) + fy(1, 4)
+    do j = 1, m - 1
+      fb(1, j) = fb(1, j) + fx(j, 2) + fx(j + 1, 1)
+      fb(2, j) = fb(2, j) + fy(j, 2) + fy(j + 1, 1)
+      ft(1, j) = ft(1, j) + fx(j, 3) + fx(j + 1, 4)
+      ft(2, j) = ft(2, j) + fy(j, 3) + fy(j + 1, 4)
     end do
-  end subroutine cell_law_mixed
+    fb(1, m) = fb(1, m) + fx(m, 2)
+    fb(2, m) = fb(2, m) + fy(m, 2)
+    ft(1, m) = ft(1, m) + fx(m, 3)
+    ft(2, m) = ft(2, m) + fy(m, 3)
+  end subroutine add_block_forces
 end module iem_cell_kernel

@@ -1,0 +1,467 @@
+!> The force kernel's work on one chunk of cells of a grid row (iem_cell_kernel gathers the
+!> chunk's two node rows and sums its corner forces per node): the edges of the chunk, each
+!> measured once; the elastic cells in one fused loop that keeps every intermediate in
+!> registers; and the general path, with the intermediates in arrays, for the nonlinear
+!> springs and the cells that fracture has reached.
+module iem_cell_chunk
+  use iem_kinds, only: wp
+  use iem_spring_constants, only: cell_constants_t, law_bending
+  use iem_nonlinear_springs, only: nonlinear_springs_t
+  use iem_cell_laws, only: chunk, cell_law, cell_law_mixed, nonlinear_law
+  use iem_fracture, only: fracture_t
+  use iem_fracture_kernel, only: fracture_chunk, damaged_cell
+  implicit none
+  private
+  public :: chunk_edges_t, chunk_edges, chunk_elastic, chunk_general, law_coefficients, &
+            damping_stresses
+
+  !> The edges of a chunk of m cells: bottom (h) and top (o) edges 1..m, from their left to
+  !> their right node; vertical edges (v) 0..m, from their bottom to their top node (cell c
+  !> has v(c - 1) on its left and v(c) on its right). Unit vector (x, y), inverse length (i)
+  !> and engineering strain (e) of each.
+  type :: chunk_edges_t
+    real(wp) :: hx(chunk), hy(chunk), hi(chunk), he(chunk)
+    real(wp) :: ox(chunk), oy(chunk), oi(chunk), oe(chunk)
+    real(wp) :: vx(0:chunk), vy(0:chunk), vi(0:chunk), ve(0:chunk)
+  end type chunk_edges_t
+
+contains
+
+  !> The edges of a chunk of m cells from the displacements bu, tu (row position 0..m,
+  !> component) of its bottom and top node rows; each edge depends on its two nodes only.
+  pure subroutine chunk_edges(k, m, bu, tu, ed)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    real(wp), intent(in) :: bu(0:chunk, 2), tu(0:chunk, 2)
+    type(chunk_edges_t), intent(out) :: ed
+    real(wp) :: wx, wy, l, il, ilx, ily
+    integer :: c
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    do c = 1, m
+      wx = k%lx + (bu(c, 1) - bu(c - 1, 1))
+      wy = bu(c, 2) - bu(c - 1, 2)
+      l = sqrt(wx*wx + wy*wy)
+      il = 1.0_wp/l
+      ed%hx(c) = wx*il
+      ed%hy(c) = wy*il
+      ed%hi(c) = il
+      ed%he(c) = l*ilx - 1.0_wp
+      wx = k%lx + (tu(c, 1) - tu(c - 1, 1))
+      wy = tu(c, 2) - tu(c - 1, 2)
+      l = sqrt(wx*wx + wy*wy)
+      il = 1.0_wp/l
+      ed%ox(c) = wx*il
+      ed%oy(c) = wy*il
+      ed%oi(c) = il
+      ed%oe(c) = l*ilx - 1.0_wp
+    end do
+    do c = 0, m
+      wx = tu(c, 1) - bu(c, 1)
+      wy = k%ly + (tu(c, 2) - bu(c, 2))
+      l = sqrt(wx*wx + wy*wy)
+      il = 1.0_wp/l
+      ed%vx(c) = wx*il
+      ed%vy(c) = wy*il
+      ed%vi(c) = il
+      ed%ve(c) = l*ily - 1.0_wp
+    end do
+  end subroutine chunk_edges
+
+  !> The elastic law of a cell of constants k as five coefficients, the same form for both
+  !> cells: g_q = c(1) eps_q + c(2) (eps_{q-1} + eps_{q+1}) + c(3) eps_{q+2} and
+  !> t_q = c(4) s_q + c(5) (s_{q+2} - s_{q-1} - s_{q+1}) (docs/model.md: the paper's cell has
+  !> c(3) = c(5) = 0; the bending-corrected cell's mean shear couples the four corners).
+  pure function law_coefficients(k) result(c)
+    type(cell_constants_t), intent(in) :: k
+    real(wp) :: c(5)
+    if (k%law == law_bending) then
+      c = [k%ce + 2.0_wp*k%ch + 2.0_wp*k%cb, 2.0_wp*k%ch, k%ce + 2.0_wp*k%ch - 2.0_wp*k%cb, &
+           0.5_wp*k%cg, 0.5_wp*k%cg]
+    else
+      c = [2.0_wp*k%ce + 4.0_wp*k%ch, 2.0_wp*k%ch, 0.0_wp, 2.0_wp*k%cg, 0.0_wp]
+    end if
+  end function law_coefficients
+
+  !> The elastic cells of a chunk in one loop: per cell its shear measures, its law (the
+  !> coefficients lc(cell, :) of law_coefficients), the damping stresses hd, ud (0 when not
+  !> damped), the corner forces fx, fy(cell, corner) and the strain energy en; the edge
+  !> strains ep and shear measures s are kept (for fracture's test).
+  pure subroutine chunk_elastic(k, m, ed, lc, hd, ud, fx, fy, en, ep, s)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(chunk_edges_t), intent(in) :: ed
+    real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk)
+    real(wp), intent(out) :: ep(chunk, 4), s(chunk, 4)
+    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
+    real(wp) :: a1x, a1y, a2x, a2y, a3x, a3y, a4x, a4y, b1x, b1y, b2x, b2y, b3x, b3y, b4x, b4y
+    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
+    integer :: c
+
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    do c = 1, m
+      ! the cell's edges: bottom, right, reversed top, reversed left
+      e1x = ed%hx(c)
+      e1y = ed%hy(c)
+      e2x = ed%vx(c)
+      e2y = ed%vy(c)
+      e3x = -ed%ox(c)
+      e3y = -ed%oy(c)
+      e4x = -ed%vx(c - 1)
+      e4y = -ed%vy(c - 1)
+      i1 = ed%hi(c)
+      i2 = ed%vi(c)
+      i3 = ed%oi(c)
+      i4 = ed%vi(c - 1)
+      p1 = ed%he(c)
+      p2 = ed%ve(c)
+      p3 = ed%oe(c)
+      p4 = ed%ve(c - 1)
+      ! shear measures s = sin(gamma) at corners 1..4 (corner q joins edges q and q-1)
+      s1 = -(e1x*e4x + e1y*e4y)
+      s2 = -(e2x*e1x + e2y*e1y)
+      s3 = -(e3x*e2x + e3y*e2y)
+      s4 = -(e4x*e3x + e4y*e3y)
+      ! d s_q / d a (a: edge q) and d s_q / d b (b: reversed edge q-1)
+      a1x = (-e4x - s1*e1x)*i1
+      a2x = (-e1x - s2*e2x)*i2
+      a3x = (-e2x - s3*e3x)*i3
+      a4x = (-e3x - s4*e4x)*i4
+      a1y = (-e4y - s1*e1y)*i1
+      a2y = (-e1y - s2*e2y)*i2
+      a3y = (-e2y - s3*e3y)*i3
+      a4y = (-e3y - s4*e4y)*i4
+      b1x = (e1x + s1*e4x)*i4
+      b2x = (e2x + s2*e1x)*i1
+      b3x = (e3x + s3*e2x)*i2
+      b4x = (e4x + s4*e3x)*i3
+      b1y = (e1y + s1*e4y)*i4
+      b2y = (e2y + s2*e1y)*i1
+      b3y = (e3y + s3*e2y)*i2
+      b4y = (e4y + s4*e3y)*i3
+      g1 = lc(c, 1)*p1 + lc(c, 2)*(p4 + p2) + lc(c, 3)*p3
+      g2 = lc(c, 1)*p2 + lc(c, 2)*(p1 + p3) + lc(c, 3)*p4
+      g3 = lc(c, 1)*p3 + lc(c, 2)*(p2 + p4) + lc(c, 3)*p1
+      g4 = lc(c, 1)*p4 + lc(c, 2)*(p3 + p1) + lc(c, 3)*p2
+      t1 = lc(c, 4)*s1 + lc(c, 5)*(s3 - s4 - s2)
+      t2 = lc(c, 4)*s2 + lc(c, 5)*(s4 - s1 - s3)
+      t3 = lc(c, 4)*s3 + lc(c, 5)*(s1 - s2 - s4)
+      t4 = lc(c, 4)*s4 + lc(c, 5)*(s2 - s3 - s1)
+      en(c) = 0.5_wp*(g1*p1 + g2*p2 + g3*p3 + g4*p4 + t1*s1 + t2*s2 + t3*s3 + t4*s4)
+      ep(c, 1) = p1
+      ep(c, 2) = p2
+      ep(c, 3) = p3
+      ep(c, 4) = p4
+      s(c, 1) = s1
+      s(c, 2) = s2
+      s(c, 3) = s3
+      s(c, 4) = s4
+      ! with the damping stresses, per unit reference length; then the corner forces: corner
+      ! q+1 gets +g_q e_q + t_q a_q, corner q gets -g_q e_q - t_q (a_q + b_q), corner q-1
+      ! gets t_q b_q
+      g1 = (g1 + hd(c, 1))*ilx
+      g2 = (g2 + hd(c, 2))*ily
+      g3 = (g3 + hd(c, 3))*ilx
+      g4 = (g4 + hd(c, 4))*ily
+      t1 = t1 + ud(c, 1)
+      t2 = t2 + ud(c, 2)
+      t3 = t3 + ud(c, 3)
+      t4 = t4 + ud(c, 4)
+      fx(c, 1) = -g1*e1x - t1*(a1x + b1x) + g4*e4x + t4*a4x + t2*b2x
+      fy(c, 1) = -g1*e1y - t1*(a1y + b1y) + g4*e4y + t4*a4y + t2*b2y
+      fx(c, 2) = -g2*e2x - t2*(a2x + b2x) + g1*e1x + t1*a1x + t3*b3x
+      fy(c, 2) = -g2*e2y - t2*(a2y + b2y) + g1*e1y + t1*a1y + t3*b3y
+      fx(c, 3) = -g3*e3x - t3*(a3x + b3x) + g2*e2x + t2*a2x + t4*b4x
+      fy(c, 3) = -g3*e3y - t3*(a3y + b3y) + g2*e2y + t2*a2y + t4*b4y
+      fx(c, 4) = -g4*e4x - t4*(a4x + b4x) + g3*e3x + t3*a3x + t1*b1x
+      fy(c, 4) = -g4*e4y - t4*(a4y + b4y) + g3*e3y + t3*a3y + t1*b1y
+    end do
+  end subroutine chunk_elastic
+
+  !> The stiffness damping of a chunk's elastic cells (law coefficients lc): beta times the
+  !> cell law of the strain and shear rates of the velocities bw, tw as edge stresses hd and
+  !> corner stresses ud, and the damping power pw = their product with the rates of the
+  !> velocities bp, tp (the same as bw, tw unless the damping acts on filtered velocities).
+  pure subroutine damping_stresses(k, m, ed, lc, beta, bw, tw, bp, tp, hd, ud, pw)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(chunk_edges_t), intent(in) :: ed
+    real(wp), intent(in) :: lc(chunk, 5), beta
+    real(wp), intent(in) :: bw(0:chunk, 2), tw(0:chunk, 2), bp(0:chunk, 2), tp(0:chunk, 2)
+    real(wp), intent(out) :: hd(chunk, 4), ud(chunk, 4), pw(chunk)
+    real(wp) :: d(chunk, 4), r(chunk, 4), dp(chunk, 4), rp(chunk, 4)
+    integer :: c
+    call strain_rates(k, m, ed, bw, tw, d, r)
+    call strain_rates(k, m, ed, bp, tp, dp, rp)
+    do c = 1, m
+      hd(c, 1) = beta*(lc(c, 1)*d(c, 1) + lc(c, 2)*(d(c, 4) + d(c, 2)) + lc(c, 3)*d(c, 3))
+      hd(c, 2) = beta*(lc(c, 1)*d(c, 2) + lc(c, 2)*(d(c, 1) + d(c, 3)) + lc(c, 3)*d(c, 4))
+      hd(c, 3) = beta*(lc(c, 1)*d(c, 3) + lc(c, 2)*(d(c, 2) + d(c, 4)) + lc(c, 3)*d(c, 1))
+      hd(c, 4) = beta*(lc(c, 1)*d(c, 4) + lc(c, 2)*(d(c, 3) + d(c, 1)) + lc(c, 3)*d(c, 2))
+      ud(c, 1) = beta*(lc(c, 4)*r(c, 1) + lc(c, 5)*(r(c, 3) - r(c, 4) - r(c, 2)))
+      ud(c, 2) = beta*(lc(c, 4)*r(c, 2) + lc(c, 5)*(r(c, 4) - r(c, 1) - r(c, 3)))
+      ud(c, 3) = beta*(lc(c, 4)*r(c, 3) + lc(c, 5)*(r(c, 1) - r(c, 2) - r(c, 4)))
+      ud(c, 4) = beta*(lc(c, 4)*r(c, 4) + lc(c, 5)*(r(c, 2) - r(c, 3) - r(c, 1)))
+      pw(c) = hd(c, 1)*dp(c, 1) + hd(c, 2)*dp(c, 2) + hd(c, 3)*dp(c, 3) + hd(c, 4)*dp(c, 4) + &
+              ud(c, 1)*rp(c, 1) + ud(c, 2)*rp(c, 2) + ud(c, 3)*rp(c, 3) + ud(c, 4)*rp(c, 4)
+    end do
+  end subroutine damping_stresses
+
+  !> Edge strain rates d and corner shear rates r of a chunk's cells with edges ed for the
+  !> velocities wb, wt of the bottom and top node rows.
+  pure subroutine strain_rates(k, m, ed, wb, wt, d, r)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(chunk_edges_t), intent(in) :: ed
+    real(wp), intent(in) :: wb(0:chunk, 2), wt(0:chunk, 2)
+    real(wp), intent(out) :: d(chunk, 4), r(chunk, 4)
+    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4, s1, s2, s3, s4
+    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, ilx, ily
+    integer :: c
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    do c = 1, m
+      e1x = ed%hx(c)
+      e1y = ed%hy(c)
+      e2x = ed%vx(c)
+      e2y = ed%vy(c)
+      e3x = -ed%ox(c)
+      e3y = -ed%oy(c)
+      e4x = -ed%vx(c - 1)
+      e4y = -ed%vy(c - 1)
+      i1 = ed%hi(c)
+      i2 = ed%vi(c)
+      i3 = ed%oi(c)
+      i4 = ed%vi(c - 1)
+      s1 = -(e1x*e4x + e1y*e4y)
+      s2 = -(e2x*e1x + e2y*e1y)
+      s3 = -(e3x*e2x + e3y*e2y)
+      s4 = -(e4x*e3x + e4y*e3y)
+      ! velocity differences along the cell's edges (bottom, right, top, left)
+      q1x = wb(c, 1) - wb(c - 1, 1)
+      q1y = wb(c, 2) - wb(c - 1, 2)
+      q2x = wt(c, 1) - wb(c, 1)
+      q2y = wt(c, 2) - wb(c, 2)
+      q3x = -(wt(c, 1) - wt(c - 1, 1))
+      q3y = -(wt(c, 2) - wt(c - 1, 2))
+      q4x = -(wt(c - 1, 1) - wb(c - 1, 1))
+      q4y = -(wt(c - 1, 2) - wb(c - 1, 2))
+      d(c, 1) = (e1x*q1x + e1y*q1y)*ilx
+      d(c, 2) = (e2x*q2x + e2y*q2y)*ily
+      d(c, 3) = (e3x*q3x + e3y*q3y)*ilx
+      d(c, 4) = (e4x*q4x + e4y*q4y)*ily
+      ! the rate of s_q: a_q . (rate of edge q) + b_q . (rate of reversed edge q-1)
+      r(c, 1) = ((-e4x - s1*e1x)*i1)*q1x + ((-e4y - s1*e1y)*i1)*q1y &
+                - ((e1x + s1*e4x)*i4)*q4x - ((e1y + s1*e4y)*i4)*q4y
+      r(c, 2) = ((-e1x - s2*e2x)*i2)*q2x + ((-e1y - s2*e2y)*i2)*q2y &
+                - ((e2x + s2*e1x)*i1)*q1x - ((e2y + s2*e1y)*i1)*q1y
+      r(c, 3) = ((-e2x - s3*e3x)*i3)*q3x + ((-e2y - s3*e3y)*i3)*q3y &
+                - ((e3x + s3*e2x)*i2)*q2x - ((e3y + s3*e2y)*i2)*q2y
+      r(c, 4) = ((-e3x - s4*e4x)*i4)*q4x + ((-e3y - s4*e4y)*i4)*q4y &
+                - ((e4x + s4*e3x)*i3)*q3x - ((e4y + s4*e3y)*i3)*q3y
+    end do
+  end subroutine strain_rates
+
+  !> The general path over a chunk of m cells with edges ed (the damping velocities bw, tw,
+  !> and with filtered damping the velocities bp, tp, of its node rows 0..m): per cell its
+  !> shear measures and their gradients in arrays, the cell law (nonlinear with nl, by
+  !> material with ks), fracture (only with fr: dmg marks the n_dmg cells it reached),
+  !> damping (only when damped) and the corner forces fx, fy(cell, corner).
+  pure subroutine chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, fx, fy, en, &
+                                pw, dmg, n_dmg, nl, c_first, accept, ks, mat, fr, time)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    logical, intent(in) :: damped, filtered
+    real(wp), intent(in) :: beta
+    type(chunk_edges_t), intent(in) :: ed
+    real(wp), intent(in) :: bw(0:chunk, 2), tw(0:chunk, 2), bp(0:chunk, 2), tp(0:chunk, 2)
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
+    logical, intent(out) :: dmg(chunk)
+    integer, intent(out) :: n_dmg
+    !> Nonlinear springs, the index of the chunk's first cell, and whether to commit.
+    type(nonlinear_springs_t), intent(inout), optional :: nl
+    integer, intent(in), optional :: c_first
+    logical, intent(in), optional :: accept
+    !> Several materials: the constants of each and the material of each cell of the chunk.
+    type(cell_constants_t), intent(in), optional :: ks(:)
+    integer, intent(in), optional :: mat(:)
+    !> Fracture state and the time of the state (committed with accept).
+    type(fracture_t), intent(inout), optional :: fr
+    real(wp), intent(in), optional :: time
+    ! per cell: unit edge vectors e, shear gradients a (d s/d a) and b (d s/d b), strains ep
+    ! and shear measures s, generalised stresses g (edges) and t (corners), and the rates
+    real(wp) :: ex(chunk, 4), ey(chunk, 4), ax(chunk, 4), ay(chunk, 4)
+    real(wp) :: bx(chunk, 4), by(chunk, 4), ep(chunk, 4), s(chunk, 4), g(chunk, 4), t(chunk, 4)
+    real(wp) :: d(chunk, 4), r(chunk, 4), gd(chunk, 4), td(chunk, 4)
+    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
+    real(wp) :: s1, s2, s3, s4, ilx, ily
+    real(wp) :: fe(chunk, 4), fs(chunk, 4)
+    integer :: c
+
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    do c = 1, m
+      ! the cell's edges: bottom, right, reversed top, reversed left
+      e1x = ed%hx(c)
+      e1y = ed%hy(c)
+      e2x = ed%vx(c)
+      e2y = ed%vy(c)
+      e3x = -ed%ox(c)
+      e3y = -ed%oy(c)
+      e4x = -ed%vx(c - 1)
+      e4y = -ed%vy(c - 1)
+      i1 = ed%hi(c)
+      i2 = ed%vi(c)
+      i3 = ed%oi(c)
+      i4 = ed%vi(c - 1)
+      ep(c, 1) = ed%he(c)
+      ep(c, 2) = ed%ve(c)
+      ep(c, 3) = ed%oe(c)
+      ep(c, 4) = ed%ve(c - 1)
+      ! shear measures s = sin(gamma) at corners 1..4 (corner q joins edges q and q-1)
+      s1 = -(e1x*e4x + e1y*e4y)
+      s2 = -(e2x*e1x + e2y*e1y)
+      s3 = -(e3x*e2x + e3y*e2y)
+      s4 = -(e4x*e3x + e4y*e3y)
+      s(c, 1) = s1
+      s(c, 2) = s2
+      s(c, 3) = s3
+      s(c, 4) = s4
+      ex(c, 1) = e1x
+      ex(c, 2) = e2x
+      ex(c, 3) = e3x
+      ex(c, 4) = e4x
+      ey(c, 1) = e1y
+      ey(c, 2) = e2y
+      ey(c, 3) = e3y
+      ey(c, 4) = e4y
+      ! d s_q / d a (a: edge q) and d s_q / d b (b: reversed edge q-1)
+      ax(c, 1) = (-e4x - s1*e1x)*i1
+      ax(c, 2) = (-e1x - s2*e2x)*i2
+      ax(c, 3) = (-e2x - s3*e3x)*i3
+      ax(c, 4) = (-e3x - s4*e4x)*i4
+      ay(c, 1) = (-e4y - s1*e1y)*i1
+      ay(c, 2) = (-e1y - s2*e2y)*i2
+      ay(c, 3) = (-e2y - s3*e3y)*i3
+      ay(c, 4) = (-e3y - s4*e4y)*i4
+      bx(c, 1) = (e1x + s1*e4x)*i4
+      bx(c, 2) = (e2x + s2*e1x)*i1
+      bx(c, 3) = (e3x + s3*e2x)*i2
+      bx(c, 4) = (e4x + s4*e3x)*i3
+      by(c, 1) = (e1y + s1*e4y)*i4
+      by(c, 2) = (e2y + s2*e1y)*i1
+      by(c, 3) = (e3y + s3*e2y)*i2
+      by(c, 4) = (e4y + s4*e3y)*i3
+    end do
+    if (present(nl)) then
+      call nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat)
+    else
+      if (present(ks)) then
+        call cell_law_mixed(ks, mat, m, ep, s, g, t)
+      else
+        call cell_law(k, m, ep, s, g, t)
+      end if
+      do c = 1, m
+        en(c) = 0.5_wp*(g(c, 1)*ep(c, 1) + g(c, 2)*ep(c, 2) + g(c, 3)*ep(c, 3) + &
+                        g(c, 4)*ep(c, 4) + t(c, 1)*s(c, 1) + t(c, 2)*s(c, 2) + &
+                        t(c, 3)*s(c, 3) + t(c, 4)*s(c, 4))
+      end do
+    end if
+    n_dmg = 0
+    dmg(1:m) = .false.
+    if (present(fr)) then
+      if (present(ks)) then
+        call fracture_chunk(fr, c_first, m, k, ep, s, accept, time, g, t, en, fe, fs, dmg, &
+                            n_dmg, ks, mat)
+      else
+        call fracture_chunk(fr, c_first, m, k, ep, s, accept, time, g, t, en, fe, fs, dmg, &
+                            n_dmg)
+      end if
+    end if
+    pw(1:m) = 0.0_wp
+    if (damped) then
+      call strain_rates(bw, tw, d, r)
+      if (present(ks)) then
+        call cell_law_mixed(ks, mat, m, d, r, gd, td)
+      else
+        call cell_law(k, m, d, r, gd, td)
+      end if
+      if (n_dmg > 0) then
+        do c = 1, m
+          if (.not. dmg(c)) cycle
+          if (present(ks)) then
+            call damaged_cell(ks(mat(c)), d(c, :), r(c, :), fe(c, :), fs(c, :), gd(c, :), &
+                              td(c, :))
+          else
+            call damaged_cell(k, d(c, :), r(c, :), fe(c, :), fs(c, :), gd(c, :), td(c, :))
+          end if
+        end do
+      end if
+      ! the damping power is f_damp . v: with filtered damping velocities, the strain rates of
+      ! the velocities themselves are needed too
+      if (filtered) call strain_rates(bp, tp, d, r)
+      do c = 1, m
+        pw(c) = beta*(gd(c, 1)*d(c, 1) + gd(c, 2)*d(c, 2) + gd(c, 3)*d(c, 3) + &
+                      gd(c, 4)*d(c, 4) + td(c, 1)*r(c, 1) + td(c, 2)*r(c, 2) + &
+                      td(c, 3)*r(c, 3) + td(c, 4)*r(c, 4))
+        g(c, :) = g(c, :) + beta*gd(c, :)
+        t(c, :) = t(c, :) + beta*td(c, :)
+      end do
+    end if
+    do c = 1, m
+      ! edge forces per unit reference length along the unit vectors: corner q+1 gets
+      ! +g_q e_q + t_q a_q, corner q gets -g_q e_q - t_q (a_q + b_q), corner q-1 gets t_q b_q
+      g(c, 1) = g(c, 1)*ilx
+      g(c, 2) = g(c, 2)*ily
+      g(c, 3) = g(c, 3)*ilx
+      g(c, 4) = g(c, 4)*ily
+      fx(c, 1) = -g(c, 1)*ex(c, 1) - t(c, 1)*(ax(c, 1) + bx(c, 1)) + g(c, 4)*ex(c, 4) &
+                 + t(c, 4)*ax(c, 4) + t(c, 2)*bx(c, 2)
+      fy(c, 1) = -g(c, 1)*ey(c, 1) - t(c, 1)*(ay(c, 1) + by(c, 1)) + g(c, 4)*ey(c, 4) &
+                 + t(c, 4)*ay(c, 4) + t(c, 2)*by(c, 2)
+      fx(c, 2) = -g(c, 2)*ex(c, 2) - t(c, 2)*(ax(c, 2) + bx(c, 2)) + g(c, 1)*ex(c, 1) &
+                 + t(c, 1)*ax(c, 1) + t(c, 3)*bx(c, 3)
+      fy(c, 2) = -g(c, 2)*ey(c, 2) - t(c, 2)*(ay(c, 2) + by(c, 2)) + g(c, 1)*ey(c, 1) &
+                 + t(c, 1)*ay(c, 1) + t(c, 3)*by(c, 3)
+      fx(c, 3) = -g(c, 3)*ex(c, 3) - t(c, 3)*(ax(c, 3) + bx(c, 3)) + g(c, 2)*ex(c, 2) &
+                 + t(c, 2)*ax(c, 2) + t(c, 4)*bx(c, 4)
+      fy(c, 3) = -g(c, 3)*ey(c, 3) - t(c, 3)*(ay(c, 3) + by(c, 3)) + g(c, 2)*ey(c, 2) &
+                 + t(c, 2)*ay(c, 2) + t(c, 4)*by(c, 4)
+      fx(c, 4) = -g(c, 4)*ex(c, 4) - t(c, 4)*(ax(c, 4) + bx(c, 4)) + g(c, 3)*ex(c, 3) &
+                 + t(c, 3)*ax(c, 3) + t(c, 1)*bx(c, 1)
+      fy(c, 4) = -g(c, 4)*ey(c, 4) - t(c, 4)*(ay(c, 4) + by(c, 4)) + g(c, 3)*ey(c, 3) &
+                 + t(c, 3)*ay(c, 3) + t(c, 1)*by(c, 1)
+    end do
+  contains
+
+    !> Edge strain rates d and shear rates r of the chunk's cells for the velocities wb, wt
+    !> of the bottom and top node rows.
+    pure subroutine strain_rates(wb, wt, d_, r_)
+      real(wp), intent(in) :: wb(0:chunk, 2), wt(0:chunk, 2)
+      real(wp), intent(out) :: d_(chunk, 4), r_(chunk, 4)
+      real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y
+      integer :: i
+      do i = 1, m
+        ! velocity differences along the cell's edges (bottom, right, top, left)
+        q1x = wb(i, 1) - wb(i - 1, 1)
+        q1y = wb(i, 2) - wb(i - 1, 2)
+        q2x = wt(i, 1) - wb(i, 1)
+        q2y = wt(i, 2) - wb(i, 2)
+        q3x = -(wt(i, 1) - wt(i - 1, 1))
+        q3y = -(wt(i, 2) - wt(i - 1, 2))
+        q4x = -(wt(i - 1, 1) - wb(i - 1, 1))
+        q4y = -(wt(i - 1, 2) - wb(i - 1, 2))
+        d_(i, 1) = (ex(i, 1)*q1x + ey(i, 1)*q1y)*ilx
+        d_(i, 2) = (ex(i, 2)*q2x + ey(i, 2)*q2y)*ily
+        d_(i, 3) = (ex(i, 3)*q3x + ey(i, 3)*q3y)*ilx
+        d_(i, 4) = (ex(i, 4)*q4x + ey(i, 4)*q4y)*ily
+        r_(i, 1) = ax(i, 1)*q1x + ay(i, 1)*q1y - bx(i, 1)*q4x - by(i, 1)*q4y
+        r_(i, 2) = ax(i, 2)*q2x + ay(i, 2)*q2y - bx(i, 2)*q1x - by(i, 2)*q1y
+        r_(i, 3) = ax(i, 3)*q3x + ay(i, 3)*q3y - bx(i, 3)*q2x - by(i, 3)*q2y
+        r_(i, 4) = ax(i, 4)*q4x + ay(i, 4)*q4y - bx(i, 4)*q3x - by(i, 4)*q3y
+      end do
+    end subroutine strain_rates
+  end subroutine chunk_general
+end module iem_cell_chunk
