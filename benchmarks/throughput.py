@@ -96,12 +96,14 @@ def run_nml(iem: str, nml: Path, ranks: int, mpiexec: str, folder: Path) -> dict
     shares = {k.strip(): float(v) for k, v in re.findall(r"([a-z][a-z ]*?) ([\d.]+)%", line)}
     mem = re.search(r"memory: peak ([\d.]+) MB per rank \(largest\), ([\d.]+) MB in all", out)
     err = re.search(r"final energy-balance error ([\d.eE+-]+)", out)
+    cells = re.search(r"nodes, (\d+) cells", out)
     return {"nodes": int(re.search(r": (\d+) nodes", out)[1]), "ranks": ranks,
+            "cells": int(cells[1]) if cells else None,
             "steps": int(re.search(r"(\d+) steps to", out)[1]),
             "wall": float(perf[2]), "rate": float(perf[3]),
             "cpu_rate": float(perf[1]) / cpu if cpu > 0 else float("nan"),
             "force": shares["force evaluation"], "halo": shares["halo exchange"],
-            "update": shares["state updates"],
+            "update": shares["state updates"], "output": shares.get("output", 0.0),
             "mem_rank": float(mem[1]), "mem_all": float(mem[2]),
             "err": float(err[1]) if err else float("nan")}
 

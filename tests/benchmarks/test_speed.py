@@ -1,0 +1,76 @@
+"""benchmarks/speed.py on canned end-of-run reports: its figures, paired ratios and table."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+import speed  # noqa: E402
+
+
+def report(**kw) -> dict:
+    """A parsed iem report (throughput.run_nml's keys) with the given values."""
+    r = {"nodes": 101025, "ranks": 1, "cells": 100352, "steps": 200, "wall": 2.0,
+         "rate": 1.0e7, "force": 75.0, "halo": 0.0, "update": 20.0, "output": 5.0,
+         "mem_rank": 50.0}
+    r.update(kw)
+    return r
+
+
+def test_step_rate_leaves_out_output():
+    assert speed.step_rate(report(rate=9.0e6, output=10.0)) == pytest.approx(1.0e7)
+
+
+def test_force_rate_counts_evaluations_per_step():
+    r = report(steps=200, cells=100352, wall=2.0, force=75.0)
+    assert speed.force_rate(r, "rk4") == pytest.approx(4 * 200 * 100352 / 1.5)
+    assert speed.force_rate(r, "verlet") == pytest.approx(200 * 100352 / 1.5)
+
+
+def test_bytes_per_node_is_the_slope():
+    small = report(nodes=101025, mem_rank=50.0)
+    large = report(nodes=1001820, mem_rank=160.0)
+    assert speed.bytes_per_node(small, large) == pytest.approx(110.0 * 1048576 / 900795)
+
+
+def test_row_uses_the_median_of_paired_ratios():
+    m = next(m for m in speed.ROWS if m.key == "rk4")
+    # paired ratios 4, 2, 2.5: median 2.5 (the ratio of the medians would be 2)
+    row = speed.table_row(m, [1.0, 2.0, 4.0], [4.0, 4.0, 10.0])
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[3] == "2.500 [2.000, 4.000]"
+    assert cells[4] == "new/old >= 3"
+    assert cells[5] == "no"
+    assert speed.table_row(m, [1.0, 2.0, 4.0], [4.0, 6.0, 14.0]).endswith("| yes |")
+
+
+def test_row_of_a_per_build_target_gives_both_verdicts():
+    m = next(m for m in speed.ROWS if m.label.startswith("RK4 bytes"))
+    row = speed.table_row(m, [200.0, 180.0, 190.0], [120.0, 140.0, 125.0])
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[1] == "190 [180, 200]"
+    assert cells[2] == "125 [120, 140]"
+    assert cells[4] == "<= 130"
+    assert cells[5] == "yes (old: no)"
+    m = next(m for m in speed.ROWS if m.key == "weak")
+    assert speed.table_row(m, [0.98] * 3, [0.96] * 3).endswith("| no (old: yes) |")
+
+
+def test_figures_of_a_repetition_pair_its_runs():
+    m = next(m for m in speed.ROWS if m.label.startswith("Verlet size"))
+    runs = {"verlet_1e5": report(rate=4.0e7, output=0.0),
+            "verlet_1e6": report(rate=3.0e7, output=0.0, nodes=1001820)}
+    assert m.figure(runs.__getitem__) == pytest.approx(0.75)
+    m = next(m for m in speed.ROWS if m.key == "weak")
+    runs = {"rk4_1e5": report(rate=1.0e7, output=0.0),
+            "weak_rk4_2": report(rate=1.9e7, output=0.0, ranks=2)}
+    assert m.figure(runs.__getitem__) == pytest.approx(0.95)
+
+
+def test_table_has_a_row_per_measure():
+    rows = [(m, [1.0, 1.0], [2.0, 2.0]) for m in speed.ROWS]
+    lines = speed.table(rows).splitlines()
+    assert len(lines) == 2 + len(speed.ROWS)
+    assert all(line.count("|") == 7 for line in lines)
