@@ -3,8 +3,9 @@
 !> them. The driver holds a class(integrator_t) made by iem_integrator_factory and never
 !> branches on which one it is (docs/architecture.md, "Run driver and integrators").
 !>
-!> Contract of a step: the rates at y(t) are in st%acc after prepare (with the powers
-!> st%p_ext1, st%p_damp1 when prepare evaluated them); step advances y to t + dt and adds the
+!> Contract of a step: the rates at y(t) are evaluated by prepare (into st%acc, or already
+!> used by the first part of the step it prepares for dt; with the powers st%p_ext1,
+!> st%p_damp1 when prepare evaluated them); step advances y to t + dt and adds the
 !> step's local external work and damping dissipation to w_ext, w_damp. An integrator that
 !> rejects non-finite states (rejects_nonfinite) leaves y at the state of t when a step is not
 !> accepted, with the rejected state in st%ynew; one that updates y in place always accepts,
@@ -67,16 +68,16 @@ module iem_integrator
       class(integrator_t), intent(in) :: this
     end function integrator_flag_i
 
-    !> Make the rates at y(t) available in st%acc at the top of a step; first: the first step
-    !> of the run (nothing has been evaluated yet).
-    subroutine integrator_prepare_i(this, model, lat, halo, st, t, first)
+    !> Evaluate the rates at y(t) at the top of a step of dt (an accepted state: the springs'
+    !> history commits to it); first: the first step of the run (nothing has been evaluated).
+    subroutine integrator_prepare_i(this, model, lat, halo, st, t, dt, first)
       import :: integrator_t, model_t, local_lattice_t, halo_t, state_t, wp
       class(integrator_t), intent(inout) :: this
       type(model_t), intent(inout) :: model
       type(local_lattice_t), intent(in) :: lat
       type(halo_t), intent(inout) :: halo
       type(state_t), intent(inout) :: st
-      real(wp), intent(in) :: t
+      real(wp), intent(in) :: t, dt
       logical, intent(in) :: first
     end subroutine integrator_prepare_i
 

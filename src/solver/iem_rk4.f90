@@ -13,13 +13,20 @@ module iem_rk4
   use iem_model, only: model_t
   use iem_state, only: state_t, state_rate
   use iem_timers, only: timer_start, timer_stop, t_force, t_halo, t_update
+  use iem_node_pass, only: rk4_stage_t
   implicit none
   private
   public :: rk4_t, rk4_finish_step
 
+  !> The classical scheme's weights w_s and stage offsets (fractions of dt).
+  real(wp), parameter :: weight(4) = [1.0_wp, 2.0_wp, 2.0_wp, 1.0_wp]/6.0_wp
+  real(wp), parameter :: frac(4) = [0.0_wp, 0.5_wp, 0.5_wp, 1.0_wp]
+
   !> Classical RK4 as an integrator_t: rates evaluated at the top of every step, stages 2-4
   !> and the update in step, which accepts only a finite new state (one reduction a step).
   type, extends(integrator_t) :: rk4_t
+    !> Whether the stage updates are fused into the evaluations' passes (4 values a node).
+    logical :: fused = .false.
   contains
     procedure :: name => rk4_name
     procedure :: stable_dt => rk4_dt
@@ -60,16 +67,33 @@ contains
     rk4_true = .true.
   end function rk4_true
 
-  !> Stage 1 at every step: the rates at y(t) (state_rate), which also serve the step's sample.
-  subroutine rk4_prepare(this, model, lat, halo, st, t, first)
+  !> Stage 1 at every step: the rates at y(t), which also serve the step's sample; with 4
+  !> state values a node the stage's update (st%ynew and the stage state st%ys for dt) is
+  !> fused into the evaluation's pass over the nodes, else the rates go to st%acc.
+  subroutine rk4_prepare(this, model, lat, halo, st, t, dt, first)
     class(rk4_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
     type(state_t), intent(inout) :: st
-    real(wp), intent(in) :: t
+    real(wp), intent(in) :: t, dt
     logical, intent(in) :: first
-    call state_rate(model, lat, halo, st, t)
+    type(rk4_stage_t) :: stage
+    this%fused = size(st%y, 1) == 4
+    if (.not. this%fused) then
+      call state_rate(model, lat, halo, st, t)
+      return
+    end if
+    stage%stage = 1
+    stage%wdt = weight(1)*dt
+    stage%h = frac(2)*dt
+    call timer_start(t_halo)
+    call halo%exchange(st%y)
+    call timer_stop(t_halo)
+    call timer_start(t_force)
+    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1, commit=.true., stage=stage, &
+                    ynew=st%ynew, ynext=st%ys)
+    call timer_stop(t_force)
   end subroutine rk4_prepare
 
   !> Stages 2-4 and the update, accepted only when every rank's new state is finite.
@@ -82,7 +106,7 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     logical, intent(out) :: accepted
-    call rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, accepted)
+    call rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, accepted, this%fused)
     call MPI_Allreduce(MPI_IN_PLACE, accepted, 1, MPI_LOGICAL, MPI_LAND, this%comm)
   end subroutine rk4_step
 
@@ -97,10 +121,12 @@ contains
   end subroutine rk4_resume
 
   !> Stages 2-4 and the update y <- y + dt/6 (k1 + 2 k2 + 2 k3 + k4); accumulates the local
-  !> external work and damping dissipation of the step with the same weights. With finite
-  !> present, the new state is accepted only if all its owned values are finite (finite =
-  !> .false.: y keeps the state at t and st%ynew holds the rejected one).
-  subroutine rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, finite)
+  !> external work and damping dissipation of the step with the same weights. Each stage's
+  !> update of the new state and of the next stage state is one pass over the nodes; the
+  !> accepted new state is swapped in (no copy). With finite present, the new state is
+  !> accepted only if all its owned values are finite (finite = .false.: y keeps the state at
+  !> t and st%ynew holds the rejected one); the test is summed in the last pass.
+  subroutine rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, finite, fused)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
@@ -108,21 +134,21 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     logical, intent(out), optional :: finite
-    real(wp) :: p_ext, p_damp, h, total
-    integer :: l, n, stage, ns
-    real(wp), parameter :: weight(4) = [1.0_wp, 2.0_wp, 2.0_wp, 1.0_wp]/6.0_wp
-    real(wp), parameter :: frac(4) = [0.0_wp, 0.5_wp, 0.5_wp, 1.0_wp]
+    !> Stage 1's update was fused into prepare's evaluation, and the later ones are too.
+    logical, intent(in), optional :: fused
+    real(wp), allocatable :: swap(:, :)
+    real(wp) :: p_ext, p_damp, total
+    integer :: n, stage
+    logical :: fuse
+    type(rk4_stage_t) :: stg
 
     n = lat%n_owned
-    ns = size(st%y, 1)
+    fuse = .false.
+    if (present(fused)) fuse = fused
     call timer_start(t_update)
-    ! k1 is in st%acc (accelerations) and st%y(3:4) (velocities)
-    do l = 1, n
-      st%ynew(1:2, l) = st%y(1:2, l) + weight(1)*dt*st%y(3:4, l)
-      st%ynew(3:ns, l) = st%y(3:ns, l) + weight(1)*dt*st%acc(:, l)
-      st%ys(1:2, l) = st%y(1:2, l) + frac(2)*dt*st%y(3:4, l)
-      st%ys(3:ns, l) = st%y(3:ns, l) + frac(2)*dt*st%acc(:, l)
-    end do
+    ! k1 is in st%acc (accelerations) and st%y(3:4) (velocities), or already applied
+    if (.not. fuse) call stage_update(st%y, st%y, st%acc, weight(1)*dt, frac(2)*dt, .true., &
+                                      st%ynew, st%ys, total)
     w_ext = w_ext + weight(1)*dt*st%p_ext1
     call model%add_work(lat, weight(1)*dt)
     w_damp = w_damp + weight(1)*dt*st%p_damp1
@@ -133,38 +159,128 @@ contains
       call halo%exchange(st%ys)
       call timer_stop(t_halo)
       call timer_start(t_force)
-      call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp)
+      if (fuse) then
+        stg%stage = stage
+        stg%wdt = weight(stage)*dt
+        stg%h = 0.0_wp
+        if (stage < 4) stg%h = frac(stage + 1)*dt
+        call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp, stage=stg, &
+                        y0=st%y, ynew=st%ynew)
+        total = stg%total
+      else
+        call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp)
+      end if
       call timer_stop(t_force)
       call timer_start(t_update)
       w_ext = w_ext + weight(stage)*dt*p_ext
       call model%add_work(lat, weight(stage)*dt)
       w_damp = w_damp + weight(stage)*dt*p_damp
-      do l = 1, n
-        st%ynew(1:2, l) = st%ynew(1:2, l) + weight(stage)*dt*st%ys(3:4, l)
-        st%ynew(3:ns, l) = st%ynew(3:ns, l) + weight(stage)*dt*st%acc(:, l)
-      end do
+      if (fuse) cycle
       if (stage < 4) then
-        h = frac(stage + 1)*dt
-        do l = 1, n
-          st%ys(1:2, l) = st%y(1:2, l) + h*st%ys(3:4, l)
-          st%ys(3:ns, l) = st%y(3:ns, l) + h*st%acc(:, l)
-        end do
+        call stage_update(st%y, st%ys, st%acc, weight(stage)*dt, frac(stage + 1)*dt, .false., &
+                          st%ynew, st%ys, total)
+      else
+        call last_update(st%ys, st%acc, weight(stage)*dt, st%ynew, total)
       end if
     end do
     if (present(finite)) then
       ! any NaN or Inf (or an overflow) makes the sum non-finite
-      total = 0.0_wp
-      do l = 1, n
-        total = total + sum(st%ynew(:, l))
-      end do
       finite = ieee_is_finite(total)
       if (.not. finite) then
         call timer_stop(t_update)
         return
       end if
     end if
-    st%y(:, 1:n) = st%ynew
+    call move_alloc(st%y, swap)
+    call move_alloc(st%ynew, st%y)
+    call move_alloc(swap, st%ynew)
     call model%prescribe(st%y, t + dt)
     call timer_stop(t_update)
+  contains
+
+    !> One pass over the owned nodes for the rate (velocities ys(3:4), rates acc) of a stage:
+    !> ynew <- (first: y, else ynew) + wdt (ys(3:4), acc), and the next stage state
+    !> ys <- y + h (ys(3:4), acc) (ys may be the stage state itself: each node's values are
+    !> read before they are written).
+    subroutine stage_update(y, yk, acc, wdt, h, first, ynew, ys, total)
+      real(wp), intent(in), contiguous :: y(:, :), yk(:, :), acc(:, :)
+      real(wp), intent(in) :: wdt, h
+      logical, intent(in) :: first
+      real(wp), intent(inout), contiguous :: ynew(:, :), ys(:, :)
+      real(wp), intent(out) :: total
+      real(wp) :: v1, v2, a1, a2
+      integer :: l, ns
+      ns = size(y, 1)
+      total = 0.0_wp
+      if (ns == 4) then
+        if (first) then
+          do l = 1, n
+            v1 = yk(3, l)
+            v2 = yk(4, l)
+            a1 = acc(1, l)
+            a2 = acc(2, l)
+            ynew(1, l) = y(1, l) + wdt*v1
+            ynew(2, l) = y(2, l) + wdt*v2
+            ynew(3, l) = y(3, l) + wdt*a1
+            ynew(4, l) = y(4, l) + wdt*a2
+            ys(1, l) = y(1, l) + h*v1
+            ys(2, l) = y(2, l) + h*v2
+            ys(3, l) = y(3, l) + h*a1
+            ys(4, l) = y(4, l) + h*a2
+          end do
+        else
+          do l = 1, n
+            v1 = yk(3, l)
+            v2 = yk(4, l)
+            a1 = acc(1, l)
+            a2 = acc(2, l)
+            ynew(1, l) = ynew(1, l) + wdt*v1
+            ynew(2, l) = ynew(2, l) + wdt*v2
+            ynew(3, l) = ynew(3, l) + wdt*a1
+            ynew(4, l) = ynew(4, l) + wdt*a2
+            ys(1, l) = y(1, l) + h*v1
+            ys(2, l) = y(2, l) + h*v2
+            ys(3, l) = y(3, l) + h*a1
+            ys(4, l) = y(4, l) + h*a2
+          end do
+        end if
+      else
+        do l = 1, n
+          if (first) then
+            ynew(1:2, l) = y(1:2, l) + wdt*yk(3:4, l)
+            ynew(3:ns, l) = y(3:ns, l) + wdt*acc(:, l)
+          else
+            ynew(1:2, l) = ynew(1:2, l) + wdt*yk(3:4, l)
+            ynew(3:ns, l) = ynew(3:ns, l) + wdt*acc(:, l)
+          end if
+          ys(1:2, l) = y(1:2, l) + h*yk(3:4, l)
+          ys(3:ns, l) = y(3:ns, l) + h*acc(:, l)
+        end do
+      end if
+    end subroutine stage_update
+
+    !> The last stage's pass: ynew <- ynew + wdt (ys(3:4), acc), with the sum of the new
+    !> values in total (eight partial sums, so the loop vectorises).
+    subroutine last_update(ys, acc, wdt, ynew, total)
+      real(wp), intent(in), contiguous :: ys(:, :), acc(:, :)
+      real(wp), intent(in) :: wdt
+      real(wp), intent(inout), contiguous :: ynew(:, :)
+      real(wp), intent(out) :: total
+      real(wp) :: part(8)
+      integer :: l, l0, j, ns
+      ns = size(ys, 1)
+      do l = 1, n
+        ynew(1, l) = ynew(1, l) + wdt*ys(3, l)
+        ynew(2, l) = ynew(2, l) + wdt*ys(4, l)
+        ynew(3:ns, l) = ynew(3:ns, l) + wdt*acc(:, l)
+      end do
+      part = 0.0_wp
+      do l0 = 0, n - 1, 8
+        do j = 1, min(8, n - l0)
+          part(j) = part(j) + sum(ynew(:, l0 + j))
+        end do
+      end do
+      total = sum(part)
+    end subroutine last_update
   end subroutine rk4_finish_step
 end module iem_rk4

@@ -437,7 +437,7 @@ contains
           if (stat /= 0) return
         end if
       end if
-      call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, k == 0)
+      call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, this%dt, k == 0)
       if (mod(k, check_interval) == 0) then
         call check_state(this, k, t, stat, msg)
         if (stat /= 0) return

@@ -18,7 +18,8 @@ module iem_state
     real(wp), allocatable :: y(:, :)
     !> RK4 only: stage state (owned and halo nodes).
     real(wp), allocatable :: ys(:, :)
-    !> RK4 only: accumulated new state (owned nodes); after a rejected step, the rejected one.
+    !> RK4 only: accumulated new state (owned nodes; halo columns unused), swapped with y when
+    !> a step is accepted; after a rejected step, the rejected one.
     real(wp), allocatable :: ynew(:, :)
     !> Rates of rows 3: of the last evaluation (owned nodes): accelerations[, filter rates].
     real(wp), allocatable :: acc(:, :)
@@ -51,8 +52,8 @@ contains
     allocate(this%y(ns, n_local), this%acc(ns - 2, n_owned), stat=ierr)
     call g%note(ierr, 'the state of the rank', 8.0_wp*ns*n_local + 8.0_wp*(ns - 2)*n_owned)
     if (work .and. .not. g%failed) then
-      allocate(this%ys(ns, n_local), this%ynew(ns, n_owned), stat=ierr)
-      call g%note(ierr, 'the RK4 work arrays of the rank', 8.0_wp*ns*n_local + 8.0_wp*ns*n_owned)
+      allocate(this%ys(ns, n_local), this%ynew(ns, n_local), stat=ierr)
+      call g%note(ierr, 'the RK4 work arrays of the rank', 16.0_wp*ns*n_local)
       if (g%failed) deallocate(this%y, this%acc)
     end if
     if (g%failed) then

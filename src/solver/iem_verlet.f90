@@ -10,6 +10,7 @@ module iem_verlet
   use iem_model, only: model_t
   use iem_state, only: state_t, state_rate
   use iem_timers, only: timer_start, timer_stop, t_force, t_halo, t_update
+  use iem_node_pass, only: kick_drift
   implicit none
   private
   public :: verlet_t, verlet_step
@@ -59,13 +60,13 @@ contains
 
   !> The rates at y(t): evaluated at the first step of the run only; later the previous step
   !> has left them in st%acc (and a restart has loaded them from the checkpoint).
-  subroutine verlet_prepare(this, model, lat, halo, st, t, first)
+  subroutine verlet_prepare(this, model, lat, halo, st, t, dt, first)
     class(verlet_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
     type(state_t), intent(inout) :: st
-    real(wp), intent(in) :: t
+    real(wp), intent(in) :: t, dt
     logical, intent(in) :: first
     if (first) call state_rate(model, lat, halo, st, t)
   end subroutine verlet_prepare
@@ -112,21 +113,38 @@ contains
     type(state_t), intent(inout) :: st
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
-    real(wp) :: p_ext, p_damp, h, c
-    integer :: l, n
+    real(wp) :: p_ext, p_damp, h, c, u_bc(size(model%bc_node))
+    integer :: l, n, q, c2
+    logical :: fuse
 
     n = lat%n_owned
     h = 0.5_wp*dt
+    fuse = size(st%y, 1) == 4
     call timer_start(t_update)
-    ! kick: v(t + dt/2); prescribed velocities take their mid-step values before the drift
-    do l = 1, n
-      st%y(3:4, l) = st%y(3:4, l) + h*st%acc(1:2, l)
-    end do
-    call model%prescribe(st%y, t + h)
+    ! kick: v(t + dt/2); prescribed velocities take their mid-step values before the drift;
     ! drift: u(t + dt)
-    do l = 1, n
-      st%y(1:2, l) = st%y(1:2, l) + dt*st%y(3:4, l)
-    end do
+    if (fuse) then
+      ! one pass; the prescribed dofs are mended from their displacements before it
+      do q = 1, size(model%bc_node)
+        u_bc(q) = st%y(model%bc_comp(q), model%bc_node(q))
+      end do
+      call kick_drift(n, h, dt, st%acc, st%y)
+      call model%prescribe(st%y, t + h)
+      do q = 1, size(model%bc_node)
+        l = model%bc_node(q)
+        c2 = model%bc_comp(q)
+        if (t + h >= model%bc_release(model%bc_id(q))) cycle
+        st%y(c2, l) = u_bc(q) + dt*st%y(2 + c2, l)
+      end do
+    else
+      do l = 1, n
+        st%y(3:4, l) = st%y(3:4, l) + h*st%acc(1:2, l)
+      end do
+      call model%prescribe(st%y, t + h)
+      do l = 1, n
+        st%y(1:2, l) = st%y(1:2, l) + dt*st%y(3:4, l)
+      end do
+    end if
     if (model%omega_cap > 0.0_wp) then
       c = 1.0_wp - exp(-model%omega_cap*dt)
       do l = 1, n
@@ -138,8 +156,13 @@ contains
     call halo%exchange(st%y)
     call timer_stop(t_halo)
     call timer_start(t_force)
-    ! the end of the step is accepted: nonlinear springs commit their history to it
-    call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true.)
+    ! the end of the step is accepted: nonlinear springs commit their history to it; with 4
+    ! values a node the kick v(t + dt) is fused into the evaluation's pass over the nodes
+    if (fuse) then
+      call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., kick=h)
+    else
+      call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true.)
+    end if
     call timer_stop(t_force)
     call timer_start(t_update)
     ! the powers are those of the half-step velocity: exact work of constant forces
@@ -147,9 +170,11 @@ contains
     w_damp = w_damp + dt*p_damp
     call model%add_work(lat, dt)
     ! kick: v(t + dt)
-    do l = 1, n
-      st%y(3:4, l) = st%y(3:4, l) + h*st%acc(1:2, l)
-    end do
+    if (.not. fuse) then
+      do l = 1, n
+        st%y(3:4, l) = st%y(3:4, l) + h*st%acc(1:2, l)
+      end do
+    end if
     call model%prescribe(st%y, t + dt)
     call timer_stop(t_update)
   end subroutine verlet_step

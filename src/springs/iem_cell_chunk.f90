@@ -12,61 +12,70 @@ module iem_cell_chunk
   use iem_fracture_kernel, only: fracture_chunk, damaged_cell
   implicit none
   private
-  public :: chunk_edges_t, chunk_edges, chunk_elastic, chunk_general, law_coefficients, &
+  public :: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, chunk_general, law_coefficients, &
             damping_stresses
 
-  !> The edges of a chunk of m cells: bottom (h) and top (o) edges 1..m, from their left to
-  !> their right node; vertical edges (v) 0..m, from their bottom to their top node (cell c
-  !> has v(c - 1) on its left and v(c) on its right). Unit vector (x, y), inverse length (i)
-  !> and engineering strain (e) of each.
-  type :: chunk_edges_t
-    real(wp) :: hx(chunk), hy(chunk), hi(chunk), he(chunk)
-    real(wp) :: ox(chunk), oy(chunk), oi(chunk), oe(chunk)
-    real(wp) :: vx(0:chunk), vy(0:chunk), vi(0:chunk), ve(0:chunk)
-  end type chunk_edges_t
+  !> A node row of a chunk and its horizontal edges: the displacements u(0:m, 2) of its nodes
+  !> 0..m and, for edges 1..m (from node c-1 to node c), the unit vector (x, y), inverse
+  !> length li and engineering strain st. A chunk's cells lie between a bottom and a top row.
+  type :: edge_row_t
+    real(wp) :: u(0:chunk, 2)
+    real(wp) :: x(chunk), y(chunk), li(chunk), st(chunk)
+  end type edge_row_t
+
+  !> The vertical edges 0..m of a chunk, from the bottom to the top row (cell c has edge c-1
+  !> on its left and edge c on its right): unit vector, inverse length and strain.
+  type :: edge_col_t
+    real(wp) :: x(0:chunk), y(0:chunk), li(0:chunk), st(0:chunk)
+  end type edge_col_t
 
 contains
 
-  !> The edges of a chunk of m cells from the displacements bu, tu (row position 0..m,
-  !> component) of its bottom and top node rows; each edge depends on its two nodes only.
-  pure subroutine chunk_edges(k, m, bu, tu, ed)
+  !> The edges of a chunk of m cells between the node rows bot and top (their displacements
+  !> given): the top row's edges, the vertical edges, and with bottom the bottom row's edges
+  !> (else already there: measured as the top row of the chunk below). Each edge depends on
+  !> its two nodes only.
+  pure subroutine chunk_edges(k, m, bot, top, bottom, v)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
-    real(wp), intent(in) :: bu(0:chunk, 2), tu(0:chunk, 2)
-    type(chunk_edges_t), intent(out) :: ed
-    real(wp) :: wx, wy, l, il, ilx, ily
+    type(edge_row_t), intent(inout) :: bot, top
+    logical, intent(in) :: bottom
+    type(edge_col_t), intent(out) :: v
     integer :: c
-    ilx = k%il0(1)
-    ily = k%il0(2)
-    do c = 1, m
-      wx = k%lx + (bu(c, 1) - bu(c - 1, 1))
-      wy = bu(c, 2) - bu(c - 1, 2)
-      l = sqrt(wx*wx + wy*wy)
-      il = 1.0_wp/l
-      ed%hx(c) = wx*il
-      ed%hy(c) = wy*il
-      ed%hi(c) = il
-      ed%he(c) = l*ilx - 1.0_wp
-      wx = k%lx + (tu(c, 1) - tu(c - 1, 1))
-      wy = tu(c, 2) - tu(c - 1, 2)
-      l = sqrt(wx*wx + wy*wy)
-      il = 1.0_wp/l
-      ed%ox(c) = wx*il
-      ed%oy(c) = wy*il
-      ed%oi(c) = il
-      ed%oe(c) = l*ilx - 1.0_wp
-    end do
+    if (bottom) call row_edges(k, m, bot%u, bot%x, bot%y, bot%li, bot%st)
+    call row_edges(k, m, top%u, top%x, top%y, top%li, top%st)
     do c = 0, m
-      wx = tu(c, 1) - bu(c, 1)
-      wy = k%ly + (tu(c, 2) - bu(c, 2))
-      l = sqrt(wx*wx + wy*wy)
-      il = 1.0_wp/l
-      ed%vx(c) = wx*il
-      ed%vy(c) = wy*il
-      ed%vi(c) = il
-      ed%ve(c) = l*ily - 1.0_wp
+      call edge(top%u(c, 1) - bot%u(c, 1), k%ly + (top%u(c, 2) - bot%u(c, 2)), k%il0(2), &
+                v%x(c), v%y(c), v%li(c), v%st(c))
     end do
   end subroutine chunk_edges
+
+  !> The horizontal edges 1..m of a node row of displacements u(0:m, 2): unit vector (x, y),
+  !> inverse length li and strain st of each.
+  pure subroutine row_edges(k, m, u, x, y, li, st)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    real(wp), intent(in) :: u(0:chunk, 2)
+    real(wp), intent(inout) :: x(chunk), y(chunk), li(chunk), st(chunk)
+    integer :: c
+    do c = 1, m
+      call edge(k%lx + (u(c, 1) - u(c - 1, 1)), u(c, 2) - u(c - 1, 2), k%il0(1), x(c), y(c), &
+                li(c), st(c))
+    end do
+  end subroutine row_edges
+
+  !> An edge vector (wx, wy) of inverse reference length il0: its unit vector (x, y), inverse
+  !> length li and engineering strain st.
+  elemental subroutine edge(wx, wy, il0, x, y, li, st)
+    real(wp), intent(in) :: wx, wy, il0
+    real(wp), intent(out) :: x, y, li, st
+    real(wp) :: l
+    l = sqrt(wx*wx + wy*wy)
+    li = 1.0_wp/l
+    x = wx*li
+    y = wy*li
+    st = l*il0 - 1.0_wp
+  end subroutine edge
 
   !> The elastic law of a cell of constants k as five coefficients, the same form for both
   !> cells: g_q = c(1) eps_q + c(2) (eps_{q-1} + eps_{q+1}) + c(3) eps_{q+2} and
@@ -87,60 +96,44 @@ contains
   !> coefficients lc(cell, :) of law_coefficients), the damping stresses hd, ud (0 when not
   !> damped), the corner forces fx, fy(cell, corner) and the strain energy en; the edge
   !> strains ep and shear measures s are kept (for fracture's test).
-  pure subroutine chunk_elastic(k, m, ed, lc, hd, ud, fx, fy, en, ep, s)
+  pure subroutine chunk_elastic(k, m, bot, top, v, lc, hd, ud, fx, fy, en, ep, s)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
-    type(chunk_edges_t), intent(in) :: ed
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
     real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk)
     real(wp), intent(out) :: ep(chunk, 4), s(chunk, 4)
     real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
-    real(wp) :: a1x, a1y, a2x, a2y, a3x, a3y, a4x, a4y, b1x, b1y, b2x, b2y, b3x, b3y, b4x, b4y
     real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
+    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4
     integer :: c
 
     ilx = k%il0(1)
     ily = k%il0(2)
     do c = 1, m
       ! the cell's edges: bottom, right, reversed top, reversed left
-      e1x = ed%hx(c)
-      e1y = ed%hy(c)
-      e2x = ed%vx(c)
-      e2y = ed%vy(c)
-      e3x = -ed%ox(c)
-      e3y = -ed%oy(c)
-      e4x = -ed%vx(c - 1)
-      e4y = -ed%vy(c - 1)
-      i1 = ed%hi(c)
-      i2 = ed%vi(c)
-      i3 = ed%oi(c)
-      i4 = ed%vi(c - 1)
-      p1 = ed%he(c)
-      p2 = ed%ve(c)
-      p3 = ed%oe(c)
-      p4 = ed%ve(c - 1)
+      e1x = bot%x(c)
+      e1y = bot%y(c)
+      e2x = v%x(c)
+      e2y = v%y(c)
+      e3x = -top%x(c)
+      e3y = -top%y(c)
+      e4x = -v%x(c - 1)
+      e4y = -v%y(c - 1)
+      i1 = bot%li(c)
+      i2 = v%li(c)
+      i3 = top%li(c)
+      i4 = v%li(c - 1)
+      p1 = bot%st(c)
+      p2 = v%st(c)
+      p3 = top%st(c)
+      p4 = v%st(c - 1)
       ! shear measures s = sin(gamma) at corners 1..4 (corner q joins edges q and q-1)
       s1 = -(e1x*e4x + e1y*e4y)
       s2 = -(e2x*e1x + e2y*e1y)
       s3 = -(e3x*e2x + e3y*e2y)
       s4 = -(e4x*e3x + e4y*e3y)
-      ! d s_q / d a (a: edge q) and d s_q / d b (b: reversed edge q-1)
-      a1x = (-e4x - s1*e1x)*i1
-      a2x = (-e1x - s2*e2x)*i2
-      a3x = (-e2x - s3*e3x)*i3
-      a4x = (-e3x - s4*e4x)*i4
-      a1y = (-e4y - s1*e1y)*i1
-      a2y = (-e1y - s2*e2y)*i2
-      a3y = (-e2y - s3*e3y)*i3
-      a4y = (-e3y - s4*e4y)*i4
-      b1x = (e1x + s1*e4x)*i4
-      b2x = (e2x + s2*e1x)*i1
-      b3x = (e3x + s3*e2x)*i2
-      b4x = (e4x + s4*e3x)*i3
-      b1y = (e1y + s1*e4y)*i4
-      b2y = (e2y + s2*e1y)*i1
-      b3y = (e3y + s3*e2y)*i2
-      b4y = (e4y + s4*e3y)*i3
       g1 = lc(c, 1)*p1 + lc(c, 2)*(p4 + p2) + lc(c, 3)*p3
       g2 = lc(c, 1)*p2 + lc(c, 2)*(p1 + p3) + lc(c, 3)*p4
       g3 = lc(c, 1)*p3 + lc(c, 2)*(p2 + p4) + lc(c, 3)*p1
@@ -158,9 +151,7 @@ contains
       s(c, 2) = s2
       s(c, 3) = s3
       s(c, 4) = s4
-      ! with the damping stresses, per unit reference length; then the corner forces: corner
-      ! q+1 gets +g_q e_q + t_q a_q, corner q gets -g_q e_q - t_q (a_q + b_q), corner q-1
-      ! gets t_q b_q
+      ! with the damping stresses; g per unit reference length
       g1 = (g1 + hd(c, 1))*ilx
       g2 = (g2 + hd(c, 2))*ily
       g3 = (g3 + hd(c, 3))*ilx
@@ -169,14 +160,30 @@ contains
       t2 = t2 + ud(c, 2)
       t3 = t3 + ud(c, 3)
       t4 = t4 + ud(c, 4)
-      fx(c, 1) = -g1*e1x - t1*(a1x + b1x) + g4*e4x + t4*a4x + t2*b2x
-      fy(c, 1) = -g1*e1y - t1*(a1y + b1y) + g4*e4y + t4*a4y + t2*b2y
-      fx(c, 2) = -g2*e2x - t2*(a2x + b2x) + g1*e1x + t1*a1x + t3*b3x
-      fy(c, 2) = -g2*e2y - t2*(a2y + b2y) + g1*e1y + t1*a1y + t3*b3y
-      fx(c, 3) = -g3*e3x - t3*(a3x + b3x) + g2*e2x + t2*a2x + t4*b4x
-      fy(c, 3) = -g3*e3y - t3*(a3y + b3y) + g2*e2y + t2*a2y + t4*b4y
-      fx(c, 4) = -g4*e4x - t4*(a4x + b4x) + g3*e3x + t3*a3x + t1*b1x
-      fy(c, 4) = -g4*e4y - t4*(a4y + b4y) + g3*e3y + t3*a3y + t1*b1y
+      ! the energy's gradient with respect to edge vector q (s_q and s_(q+1) depend on it):
+      ! q_q = (g_q - (t_q s_q + t_(q+1) s_(q+1))/l_q) e_q - (t_q e_(q-1) + t_(q+1) e_(q+1))/l_q;
+      ! edge q pulls its start corner q by +q_q and its end corner q+1 by -q_q
+      c1 = g1 - i1*(t1*s1 + t2*s2)
+      c2 = g2 - i2*(t2*s2 + t3*s3)
+      c3 = g3 - i3*(t3*s3 + t4*s4)
+      c4 = g4 - i4*(t4*s4 + t1*s1)
+      q1x = c1*e1x - i1*(t1*e4x + t2*e2x)
+      q1y = c1*e1y - i1*(t1*e4y + t2*e2y)
+      q2x = c2*e2x - i2*(t2*e1x + t3*e3x)
+      q2y = c2*e2y - i2*(t2*e1y + t3*e3y)
+      q3x = c3*e3x - i3*(t3*e2x + t4*e4x)
+      q3y = c3*e3y - i3*(t3*e2y + t4*e4y)
+      q4x = c4*e4x - i4*(t4*e3x + t1*e1x)
+      q4y = c4*e4y - i4*(t4*e3y + t1*e1y)
+      ! corner q is the start of edge q and the end of edge q-1: its force is dPi/dx_q
+      fx(c, 1) = q4x - q1x
+      fy(c, 1) = q4y - q1y
+      fx(c, 2) = q1x - q2x
+      fy(c, 2) = q1y - q2y
+      fx(c, 3) = q2x - q3x
+      fy(c, 3) = q2y - q3y
+      fx(c, 4) = q3x - q4x
+      fy(c, 4) = q3y - q4y
     end do
   end subroutine chunk_elastic
 
@@ -184,17 +191,18 @@ contains
   !> cell law of the strain and shear rates of the velocities bw, tw as edge stresses hd and
   !> corner stresses ud, and the damping power pw = their product with the rates of the
   !> velocities bp, tp (the same as bw, tw unless the damping acts on filtered velocities).
-  pure subroutine damping_stresses(k, m, ed, lc, beta, bw, tw, bp, tp, hd, ud, pw)
+  pure subroutine damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bp, tp, hd, ud, pw)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
-    type(chunk_edges_t), intent(in) :: ed
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
     real(wp), intent(in) :: lc(chunk, 5), beta
     real(wp), intent(in) :: bw(0:chunk, 2), tw(0:chunk, 2), bp(0:chunk, 2), tp(0:chunk, 2)
     real(wp), intent(out) :: hd(chunk, 4), ud(chunk, 4), pw(chunk)
     real(wp) :: d(chunk, 4), r(chunk, 4), dp(chunk, 4), rp(chunk, 4)
     integer :: c
-    call strain_rates(k, m, ed, bw, tw, d, r)
-    call strain_rates(k, m, ed, bp, tp, dp, rp)
+    call strain_rates(k, m, bot, top, v, bw, tw, d, r)
+    call strain_rates(k, m, bot, top, v, bp, tp, dp, rp)
     do c = 1, m
       hd(c, 1) = beta*(lc(c, 1)*d(c, 1) + lc(c, 2)*(d(c, 4) + d(c, 2)) + lc(c, 3)*d(c, 3))
       hd(c, 2) = beta*(lc(c, 1)*d(c, 2) + lc(c, 2)*(d(c, 1) + d(c, 3)) + lc(c, 3)*d(c, 4))
@@ -209,12 +217,13 @@ contains
     end do
   end subroutine damping_stresses
 
-  !> Edge strain rates d and corner shear rates r of a chunk's cells with edges ed for the
+  !> Edge strain rates d and corner shear rates r of a chunk's cells between the node rows bot, top (vertical edges v) for the
   !> velocities wb, wt of the bottom and top node rows.
-  pure subroutine strain_rates(k, m, ed, wb, wt, d, r)
+  pure subroutine strain_rates(k, m, bot, top, v, wb, wt, d, r)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
-    type(chunk_edges_t), intent(in) :: ed
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
     real(wp), intent(in) :: wb(0:chunk, 2), wt(0:chunk, 2)
     real(wp), intent(out) :: d(chunk, 4), r(chunk, 4)
     real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4, s1, s2, s3, s4
@@ -223,18 +232,18 @@ contains
     ilx = k%il0(1)
     ily = k%il0(2)
     do c = 1, m
-      e1x = ed%hx(c)
-      e1y = ed%hy(c)
-      e2x = ed%vx(c)
-      e2y = ed%vy(c)
-      e3x = -ed%ox(c)
-      e3y = -ed%oy(c)
-      e4x = -ed%vx(c - 1)
-      e4y = -ed%vy(c - 1)
-      i1 = ed%hi(c)
-      i2 = ed%vi(c)
-      i3 = ed%oi(c)
-      i4 = ed%vi(c - 1)
+      e1x = bot%x(c)
+      e1y = bot%y(c)
+      e2x = v%x(c)
+      e2y = v%y(c)
+      e3x = -top%x(c)
+      e3y = -top%y(c)
+      e4x = -v%x(c - 1)
+      e4y = -v%y(c - 1)
+      i1 = bot%li(c)
+      i2 = v%li(c)
+      i3 = top%li(c)
+      i4 = v%li(c - 1)
       s1 = -(e1x*e4x + e1y*e4y)
       s2 = -(e2x*e1x + e2y*e1y)
       s3 = -(e3x*e2x + e3y*e2y)
@@ -264,18 +273,19 @@ contains
     end do
   end subroutine strain_rates
 
-  !> The general path over a chunk of m cells with edges ed (the damping velocities bw, tw,
+  !> The general path over a chunk of m cells between the node rows bot, top (vertical edges v; the damping velocities bw, tw,
   !> and with filtered damping the velocities bp, tp, of its node rows 0..m): per cell its
   !> shear measures and their gradients in arrays, the cell law (nonlinear with nl, by
   !> material with ks), fracture (only with fr: dmg marks the n_dmg cells it reached),
   !> damping (only when damped) and the corner forces fx, fy(cell, corner).
-  pure subroutine chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, fx, fy, en, &
-                                pw, dmg, n_dmg, nl, c_first, accept, ks, mat, fr, time)
+  pure subroutine chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, &
+                                fy, en, pw, dmg, n_dmg, nl, c_first, accept, ks, mat, fr, time)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     logical, intent(in) :: damped, filtered
     real(wp), intent(in) :: beta
-    type(chunk_edges_t), intent(in) :: ed
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
     real(wp), intent(in) :: bw(0:chunk, 2), tw(0:chunk, 2), bp(0:chunk, 2), tp(0:chunk, 2)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk)
     logical, intent(out) :: dmg(chunk)
@@ -304,22 +314,22 @@ contains
     ily = k%il0(2)
     do c = 1, m
       ! the cell's edges: bottom, right, reversed top, reversed left
-      e1x = ed%hx(c)
-      e1y = ed%hy(c)
-      e2x = ed%vx(c)
-      e2y = ed%vy(c)
-      e3x = -ed%ox(c)
-      e3y = -ed%oy(c)
-      e4x = -ed%vx(c - 1)
-      e4y = -ed%vy(c - 1)
-      i1 = ed%hi(c)
-      i2 = ed%vi(c)
-      i3 = ed%oi(c)
-      i4 = ed%vi(c - 1)
-      ep(c, 1) = ed%he(c)
-      ep(c, 2) = ed%ve(c)
-      ep(c, 3) = ed%oe(c)
-      ep(c, 4) = ed%ve(c - 1)
+      e1x = bot%x(c)
+      e1y = bot%y(c)
+      e2x = v%x(c)
+      e2y = v%y(c)
+      e3x = -top%x(c)
+      e3y = -top%y(c)
+      e4x = -v%x(c - 1)
+      e4y = -v%y(c - 1)
+      i1 = bot%li(c)
+      i2 = v%li(c)
+      i3 = top%li(c)
+      i4 = v%li(c - 1)
+      ep(c, 1) = bot%st(c)
+      ep(c, 2) = v%st(c)
+      ep(c, 3) = top%st(c)
+      ep(c, 4) = v%st(c - 1)
       ! shear measures s = sin(gamma) at corners 1..4 (corner q joins edges q and q-1)
       s1 = -(e1x*e4x + e1y*e4y)
       s2 = -(e2x*e1x + e2y*e1y)

@@ -13,13 +13,18 @@ module iem_cell_kernel
   use iem_spring_constants, only: cell_constants_t
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk
-  use iem_cell_chunk, only: chunk_edges_t, chunk_edges, chunk_elastic, chunk_general, &
+  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, chunk_general, &
                             law_coefficients, damping_stresses
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact
   implicit none
   private
   public :: cell_energy, cell_force, cell_forces, cell_strain_measures, cell_chunks
+  public :: kernel_rows
+
+  !> Node rows the kernel keeps for reuse by the chunk above (a rank's row of up to 64 chunks,
+  !> 4096 cells, reuses every row once; wider rows measure their rows twice).
+  integer, parameter :: kernel_slots = 64
 
 contains
 
@@ -70,7 +75,7 @@ contains
     y(3:4, :) = v
     call cell_forces(k, nodes, 4, y, beta, f, energy, damp_power)
   end subroutine cell_force
-  !> Nodal forces f(2, :) (internal + stiffness damping) of many cells for the state
+  !> Nodal forces f(2, :) (internal + stiffness damping; added to f with add) of many cells for the state
   !> y(4, :) = (u, v) of the nodes listed in cell_nodes, with the strain energy and the
   !> damping power summed over the counted cells (those whose first corner is among the
   !> first n_owned nodes). Each node's force is summed over its cells in the order of
@@ -96,14 +101,15 @@ contains
   !> has begun or begins follow the damaged law, and with commit their damage is committed at
   !> time (iem_fracture_kernel).
   pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
-                              nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, plan)
+                              nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, plan, &
+                              add, rows)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in), contiguous :: cell_nodes(:, :)
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
     integer, intent(in) :: n_owned
     real(wp), intent(in), contiguous :: y(:, :)
     real(wp), intent(in) :: beta
-    real(wp), intent(out), contiguous :: f(:, :)
+    real(wp), intent(inout), contiguous :: f(:, :)
     real(wp), intent(out) :: energy, damp_power
     integer, intent(in), optional :: damp_row
     type(nonlinear_springs_t), intent(inout), optional :: nl
@@ -116,18 +122,28 @@ contains
     !> The chunks of cell_nodes (cell_chunks; made here when absent).
     integer, intent(in), optional, contiguous :: plan(:, :)
     integer, allocatable :: own_plan(:, :)
+    !> Add the forces to f (which holds zeros, or forces to add to) instead of replacing it.
+    logical, intent(in), optional :: add
+    !> Work space: node rows (kernel_rows(); made here when absent).
+    type(edge_row_t), intent(inout), optional, target :: rows(:)
     ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
     ! (w) and, with filtered damping, the velocities (p)
     integer :: bn(0:chunk), tn(0:chunk)
-    real(wp) :: bu(0:chunk, 2), tu(0:chunk, 2), bw(0:chunk, 2), tw(0:chunk, 2)
+    real(wp) :: bw(0:chunk, 2), tw(0:chunk, 2)
     real(wp) :: bp(0:chunk, 2), tp(0:chunk, 2)
     ! the chunk's edges, its cells' constants, corner forces, energies, powers, strains, and
     ! those of the general path (fracture: only its damaged cells are taken)
-    type(chunk_edges_t) :: ed
+    ! the node rows of the last chunks, for the chunk above each to reuse as its bottom row
+    ! (slot j: its first node, its number of edges; two more rows for other chunks), and the
+    ! vertical edges of the chunk
+    type(edge_row_t), allocatable, target :: own_rows(:)
+    type(edge_row_t), pointer :: rp(:)
+    type(edge_col_t) :: v
+    integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, hit, j, ib, it, slots
     real(wp) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk), ep(chunk, 4), s(chunk, 4)
     real(wp) :: gx(chunk, 4), gy(chunk, 4), gen(chunk), gpw(chunk)
-    logical :: dmg(chunk)
+    logical :: dmg(chunk), counted(chunk)
     integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
 
@@ -156,16 +172,46 @@ contains
     pw = 0.0_wp
     ! the sums over the counted cells: only when the cells' energies are not kept apart
     sums = .not. present(cell_energy) .or. keep_energy
-    f = 0.0_wp
+    if (present(add)) then
+      if (.not. add) f = 0.0_wp
+    else
+      f = 0.0_wp
+    end if
     energy = 0.0_wp
     damp_power = 0.0_wp
     if (.not. present(plan)) own_plan = cell_chunks(cell_nodes)
+    slots = kernel_slots
+    if (present(rows)) then
+      rp => rows
+    else
+      allocate(own_rows(slots + 2))
+      rp => own_rows
+    end if
+    slot_node = -1
+    slot_m = 0
+    next_slot = 1
     do ic = 1, n_chunks()
-      call chunk_of(ic, c0, m, consec)
-      b0 = cell_nodes(1, c0)
-      t0 = cell_nodes(4, c0)
+      call chunk_of(ic, c0, m, consec, b0, t0)
+      ! the chunk's bottom and top rows: a consecutive chunk's top row goes to the next slot,
+      ! its bottom row is the slot of the chunk below when that chunk's top row is this row
+      ib = slots + 1
+      it = slots + 2
+      hit = 0
       if (consec) then
-        call gather_block(y, 1, m, b0, t0, bu, tu)
+        do j = 1, slots
+          if (slot_node(j) == b0 .and. slot_m(j) == m) then
+            hit = j
+            exit
+          end if
+        end do
+        if (hit > 0) ib = hit
+        if (next_slot == hit) next_slot = mod(next_slot, slots) + 1
+        it = next_slot
+        slot_node(it) = t0
+        slot_m(it) = m
+        next_slot = mod(next_slot, slots) + 1
+        if (hit == 0) call gather_row(y, 1, m, b0, rp(ib)%u)
+        call gather_row(y, 1, m, t0, rp(it)%u)
         if (damped) call gather_block(y, row, m, b0, t0, bw, tw)
         if (filtered) call gather_block(y, 3, m, b0, t0, bp, tp)
       else
@@ -175,17 +221,20 @@ contains
           bn(i) = cell_nodes(2, c0 + i - 1)
           tn(i) = cell_nodes(3, c0 + i - 1)
         end do
-        call gather_rows(y, 1, m, bn, tn, bu, tu)
+        call gather_rows(y, 1, m, bn, tn, rp(ib)%u, rp(it)%u)
         if (damped) call gather_rows(y, row, m, bn, tn, bw, tw)
         if (filtered) call gather_rows(y, 3, m, bn, tn, bp, tp)
       end if
-      call chunk_edges(k, m, bu, tu, ed)
+      associate(bot => rp(ib), top => rp(it))
+      call chunk_edges(k, m, bot, top, hit == 0, v)
       if (present(nl)) then
         if (by_material) then
-          call chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, fx, fy, en, pw, &
+          call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, fy, &
+                             en, pw, &
                              dmg, n_dmg, nl, c0, accept, ks, cell_mat(c0:c0 + m - 1))
         else
-          call chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, fx, fy, en, pw, &
+          call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, fy, &
+                             en, pw, &
                              dmg, n_dmg, nl, c0, accept)
         end if
       else
@@ -195,20 +244,22 @@ contains
           end do
         end if
         if (filtered) then
-          call damping_stresses(k, m, ed, lc, beta, bw, tw, bp, tp, hd, ud, pw)
+          call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bp, tp, hd, ud, pw)
         else if (damped) then
-          call damping_stresses(k, m, ed, lc, beta, bw, tw, bw, tw, hd, ud, pw)
+          call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bw, tw, hd, ud, pw)
         end if
-        call chunk_elastic(k, m, ed, lc, hd, ud, fx, fy, en, ep, s)
+        call chunk_elastic(k, m, bot, top, v, lc, hd, ud, fx, fy, en, ep, s)
         if (present(fr)) then
           ! cells that fracture has reached take the general path's damaged law
           if (.not. chunk_intact(fr, c0, m, ep, s)) then
             if (by_material) then
-              call chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, gx, gy, &
+              call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, gx, &
+                                 gy, &
                                  gen, gpw, dmg, n_dmg, c_first=c0, accept=accept, ks=ks, &
                                  mat=cell_mat(c0:c0 + m - 1), fr=fr, time=time)
             else
-              call chunk_general(k, m, ed, damped, filtered, beta, bw, tw, bp, tp, gx, gy, &
+              call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, gx, &
+                                 gy, &
                                  gen, gpw, dmg, n_dmg, c_first=c0, accept=accept, fr=fr, &
                                  time=time)
             end if
@@ -222,21 +273,30 @@ contains
           end if
         end if
       end if
+      end associate
       if (consec) then
         call add_block_forces(m, f(:, b0:b0 + m), f(:, t0:t0 + m), fx, fy)
       else
         call add_node_forces(m, bn, tn, fx, fy, f)
       end if
-      if (sums) then
+      if (sums .or. damped) then
+        ! the counted cells: those whose first corner is owned
+        if (consec) then
+          do i = 1, m
+            counted(i) = b0 + i - 1 <= n_owned
+          end do
+        else
+          do i = 1, m
+            counted(i) = bn(i - 1) <= n_owned
+          end do
+        end if
+        if (sums) then
+          do i = 1, m
+            if (counted(i)) energy = energy + en(i)
+          end do
+        end if
         do i = 1, m
-          if (cell_nodes(1, c0 + i - 1) <= n_owned) then
-            energy = energy + en(i)
-            damp_power = damp_power + pw(i)
-          end if
-        end do
-      else if (damped) then
-        do i = 1, m
-          if (cell_nodes(1, c0 + i - 1) <= n_owned) damp_power = damp_power + pw(i)
+          if (counted(i)) damp_power = damp_power + pw(i)
         end do
       end if
       if (keep_energy) cell_energy(c0:c0 + m - 1) = en(1:m)
@@ -253,53 +313,66 @@ contains
       end if
     end function n_chunks
 
-    !> Chunk j: its first cell, its number of cells, whether its node rows are consecutive.
-    pure subroutine chunk_of(j, first, n, cons)
+    !> Chunk j: its first cell, its number of cells, whether its node rows are consecutive,
+    !> its first bottom and top nodes.
+    pure subroutine chunk_of(j, first, n, cons, b, t)
       integer, intent(in) :: j
-      integer, intent(out) :: first, n
+      integer, intent(out) :: first, n, b, t
       logical, intent(out) :: cons
       if (present(plan)) then
         first = plan(1, j)
         n = plan(2, j)
         cons = plan(3, j) == 1
+        b = plan(4, j)
+        t = plan(5, j)
       else
         first = own_plan(1, j)
         n = own_plan(2, j)
         cons = own_plan(3, j) == 1
+        b = own_plan(4, j)
+        t = own_plan(5, j)
       end if
     end subroutine chunk_of
   end subroutine cell_forces
 
+  !> Work space of cell_forces (its node rows), for a caller that keeps it between calls.
+  pure function kernel_rows() result(rows)
+    type(edge_row_t), allocatable :: rows(:)
+    allocate(rows(kernel_slots + 2))
+  end function kernel_rows
+
   !> The chunks of a cell list for cell_forces: plan(:, j) = (first cell, number of cells,
-  !> 1 when the chunk's bottom and top node rows are each numbered consecutively, else 0).
+  !> 1 when the chunk's bottom and top node rows are each numbered consecutively, else 0,
+  !> the first cell's bottom-left and top-left nodes).
   !> A chunk holds up to 64 consecutive cells each sharing its left edge with the right edge
   !> of the one before (a run of a grid row), so holes and a rank's row ends end chunks.
   pure function cell_chunks(cell_nodes) result(plan)
     integer, intent(in) :: cell_nodes(:, :)
     integer, allocatable :: plan(:, :)
-    integer, allocatable :: work(:, :)
-    integer :: nc, c0, m, n
+    integer :: nc, c0, m, n, pass
     nc = size(cell_nodes, 2)
-    allocate(work(3, nc))
-    n = 0
-    c0 = 1
-    do while (c0 <= nc)
-      m = 1
-      do while (m < chunk .and. c0 + m <= nc)
-        if (cell_nodes(1, c0 + m) /= cell_nodes(2, c0 + m - 1) .or. &
-            cell_nodes(4, c0 + m) /= cell_nodes(3, c0 + m - 1)) exit
-        m = m + 1
+    ! first count the chunks, then fill them
+    do pass = 1, 2
+      n = 0
+      c0 = 1
+      do while (c0 <= nc)
+        m = 1
+        do while (m < chunk .and. c0 + m <= nc)
+          if (cell_nodes(1, c0 + m) /= cell_nodes(2, c0 + m - 1) .or. &
+              cell_nodes(4, c0 + m) /= cell_nodes(3, c0 + m - 1)) exit
+          m = m + 1
+        end do
+        n = n + 1
+        if (pass == 2) then
+          plan(:, n) = [c0, m, 0, cell_nodes(1, c0), cell_nodes(4, c0)]
+          ! consecutive node rows: each cell's right corners follow its left ones
+          if (all(cell_nodes(2, c0:c0 + m - 1) - cell_nodes(1, c0:c0 + m - 1) == 1) .and. &
+              all(cell_nodes(3, c0:c0 + m - 1) - cell_nodes(4, c0:c0 + m - 1) == 1)) plan(3, n) = 1
+        end if
+        c0 = c0 + m
       end do
-      n = n + 1
-      work(1, n) = c0
-      work(2, n) = m
-      work(3, n) = 0
-      ! consecutive node rows: each cell's right corners follow its left ones
-      if (all(cell_nodes(2, c0:c0 + m - 1) - cell_nodes(1, c0:c0 + m - 1) == 1) .and. &
-          all(cell_nodes(3, c0:c0 + m - 1) - cell_nodes(4, c0:c0 + m - 1) == 1)) work(3, n) = 1
-      c0 = c0 + m
+      if (pass == 1) allocate(plan(5, n))
     end do
-    plan = work(:, 1:n)
   end function cell_chunks
 
   !> Rows r, r+1 of y at the nodes b0..b0+m (bottom) and t0..t0+m (top) into wb, wt(0:m, 2).
@@ -307,27 +380,34 @@ contains
     real(wp), intent(in), contiguous :: y(:, :)
     integer, intent(in) :: r, m, b0, t0
     real(wp), intent(inout) :: wb(0:chunk, 2), wt(0:chunk, 2)
+    call gather_row(y, r, m, b0, wb)
+    call gather_row(y, r, m, t0, wt)
+  end subroutine gather_block
+
+  !> Rows r, r+1 of y at the nodes n0..n0+m into w(0:m, 2).
+  pure subroutine gather_row(y, r, m, n0, w)
+    real(wp), intent(in), contiguous :: y(:, :)
+    integer, intent(in) :: r, m, n0
+    real(wp), intent(inout) :: w(0:chunk, 2)
     if (size(y, 1) == 4) then
-      call block_rows(4, y(:, b0:b0 + m), y(:, t0:t0 + m), wb, wt)
+      call block_row(4, y(:, n0:n0 + m), w)
     else
-      call block_rows(size(y, 1), y(:, b0:b0 + m), y(:, t0:t0 + m), wb, wt)
+      call block_row(size(y, 1), y(:, n0:n0 + m), w)
     end if
   contains
 
-    !> The two rows from blocks of consecutive nodes (ns values a node).
-    pure subroutine block_rows(ns, yb, yt, vb, vt)
+    !> The two rows from a block of consecutive nodes (ns values a node).
+    pure subroutine block_row(ns, yb, v)
       integer, intent(in) :: ns
-      real(wp), intent(in) :: yb(ns, 0:m), yt(ns, 0:m)
-      real(wp), intent(inout) :: vb(0:chunk, 2), vt(0:chunk, 2)
-      integer :: j
-      do j = 0, m
-        vb(j, 1) = yb(r, j)
-        vb(j, 2) = yb(r + 1, j)
-        vt(j, 1) = yt(r, j)
-        vt(j, 2) = yt(r + 1, j)
+      real(wp), intent(in) :: yb(ns, 0:m)
+      real(wp), intent(inout) :: v(0:chunk, 2)
+      integer :: i
+      do i = 0, m
+        v(i, 1) = yb(r, i)
+        v(i, 2) = yb(r + 1, i)
       end do
-    end subroutine block_rows
-  end subroutine gather_block
+    end subroutine block_row
+  end subroutine gather_row
 
   !> Rows r, r+1 of y at the chunk's bottom and top nodes bn(0:m), tn(0:m) into wb, wt(0:m, 2).
   pure subroutine gather_rows(y, r, m, bn, tn, wb, wt)

@@ -1,0 +1,153 @@
+!> The pass over a rank's owned nodes that follows the cell forces: the accelerations
+!> a = -(f + alpha m v)/m from the summed forces f (external loads already folded in as -f_ext),
+!> clearing f for the next evaluation, and for RK4 the stage's update fused into the same
+!> pass, so that no stage reads or writes the rates as a separate array (docs/numerics.md,
+!> "RK4's passes"). The classical scheme: k_s = (v_s, a_s), y_new = y + dt sum w_s k_s, stage
+!> states y + h_s k_s, each value with the same arithmetic as separate passes would do.
+module iem_node_pass
+  use iem_kinds, only: wp
+  implicit none
+  private
+  public :: rk4_stage_t, accelerations, rk4_first_pass, rk4_mid_pass, rk4_last_pass, kick_drift
+
+  !> An RK4 stage for the node pass: its number (1..4), w_s dt, the offset h of the next
+  !> stage state, and after the last stage the sum of the new state's owned values (not
+  !> finite when any value is not).
+  type :: rk4_stage_t
+    integer :: stage = 0
+    real(wp) :: wdt = 0.0_wp, h = 0.0_wp, total = 0.0_wp
+  end type rk4_stage_t
+
+contains
+
+  !> Accelerations acc(1:2, l) = -(f + alpha m v)/m of the owned nodes 1..n (velocities in
+  !> y(3:4, :)), clearing f(:, 1:n); with kick, then the velocities' half kick v += kick a
+  !> (velocity Verlet's second kick, fused).
+  pure subroutine accelerations(n, alpha, mass, y, f, acc, kick)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: alpha, mass(:)
+    real(wp), intent(inout), contiguous :: y(:, :)
+    real(wp), intent(inout), contiguous :: f(:, :), acc(:, :)
+    real(wp), intent(in), optional :: kick
+    real(wp) :: h
+    integer :: l
+    if (present(kick)) then
+      h = kick
+      do l = 1, n
+        acc(1, l) = -(f(1, l) + alpha*mass(l)*y(3, l))/mass(l)
+        acc(2, l) = -(f(2, l) + alpha*mass(l)*y(4, l))/mass(l)
+        f(1, l) = 0.0_wp
+        f(2, l) = 0.0_wp
+        y(3, l) = y(3, l) + h*acc(1, l)
+        y(4, l) = y(4, l) + h*acc(2, l)
+      end do
+      return
+    end if
+    do l = 1, n
+      acc(1, l) = -(f(1, l) + alpha*mass(l)*y(3, l))/mass(l)
+      acc(2, l) = -(f(2, l) + alpha*mass(l)*y(4, l))/mass(l)
+      f(1, l) = 0.0_wp
+      f(2, l) = 0.0_wp
+    end do
+  end subroutine accelerations
+
+  !> Velocity Verlet's first kick and drift of the owned nodes 1..n in one pass:
+  !> v += h acc, then u += dt v (prescribed velocities are the caller's to mend).
+  pure subroutine kick_drift(n, h, dt, acc, y)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: h, dt
+    real(wp), intent(in), contiguous :: acc(:, :)
+    real(wp), intent(inout), contiguous :: y(:, :)
+    integer :: l
+    do l = 1, n
+      y(3, l) = y(3, l) + h*acc(1, l)
+      y(4, l) = y(4, l) + h*acc(2, l)
+      y(1, l) = y(1, l) + dt*y(3, l)
+      y(2, l) = y(2, l) + dt*y(4, l)
+    end do
+  end subroutine kick_drift
+
+  !> Stage 1 at the state y (u, v): ynew = y + wdt k1 and the next stage state
+  !> ys = y + h k1, clearing f; (u, v) only (4 values a node).
+  pure subroutine rk4_first_pass(n, alpha, mass, wdt, h, y, f, ynew, ys)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: alpha, mass(:), wdt, h
+    real(wp), intent(in), contiguous :: y(:, :)
+    real(wp), intent(inout), contiguous :: f(:, :), ynew(:, :), ys(:, :)
+    real(wp) :: a1, a2, v1, v2
+    integer :: l
+    do l = 1, n
+      v1 = y(3, l)
+      v2 = y(4, l)
+      a1 = -(f(1, l) + alpha*mass(l)*v1)/mass(l)
+      a2 = -(f(2, l) + alpha*mass(l)*v2)/mass(l)
+      f(1, l) = 0.0_wp
+      f(2, l) = 0.0_wp
+      ynew(1, l) = y(1, l) + wdt*v1
+      ynew(2, l) = y(2, l) + wdt*v2
+      ynew(3, l) = y(3, l) + wdt*a1
+      ynew(4, l) = y(4, l) + wdt*a2
+      ys(1, l) = y(1, l) + h*v1
+      ys(2, l) = y(2, l) + h*v2
+      ys(3, l) = y(3, l) + h*a1
+      ys(4, l) = y(4, l) + h*a2
+    end do
+  end subroutine rk4_first_pass
+
+  !> Stage 2 or 3 at the stage state ys: ynew = ynew + wdt k_s, and ys becomes the next
+  !> stage state y0 + h k_s (y0: the state at the start of the step), clearing f.
+  pure subroutine rk4_mid_pass(n, alpha, mass, wdt, h, y0, f, ynew, ys)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: alpha, mass(:), wdt, h
+    real(wp), intent(in), contiguous :: y0(:, :)
+    real(wp), intent(inout), contiguous :: f(:, :), ynew(:, :), ys(:, :)
+    real(wp) :: a1, a2, v1, v2
+    integer :: l
+    do l = 1, n
+      v1 = ys(3, l)
+      v2 = ys(4, l)
+      a1 = -(f(1, l) + alpha*mass(l)*v1)/mass(l)
+      a2 = -(f(2, l) + alpha*mass(l)*v2)/mass(l)
+      f(1, l) = 0.0_wp
+      f(2, l) = 0.0_wp
+      ynew(1, l) = ynew(1, l) + wdt*v1
+      ynew(2, l) = ynew(2, l) + wdt*v2
+      ynew(3, l) = ynew(3, l) + wdt*a1
+      ynew(4, l) = ynew(4, l) + wdt*a2
+      ys(1, l) = y0(1, l) + h*v1
+      ys(2, l) = y0(2, l) + h*v2
+      ys(3, l) = y0(3, l) + h*a1
+      ys(4, l) = y0(4, l) + h*a2
+    end do
+  end subroutine rk4_mid_pass
+
+  !> Stage 4 at the stage state ys: ynew = ynew + wdt k4, clearing f, with the sum of the
+  !> new values in total (eight partial sums, so that the loop vectorises).
+  pure subroutine rk4_last_pass(n, alpha, mass, wdt, ys, f, ynew, total)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: alpha, mass(:), wdt
+    real(wp), intent(in), contiguous :: ys(:, :)
+    real(wp), intent(inout), contiguous :: f(:, :), ynew(:, :)
+    real(wp), intent(out) :: total
+    real(wp) :: a1, a2, v1, v2, part(8)
+    integer :: l, l0, j
+    part = 0.0_wp
+    do l0 = 0, n - 1, 8
+      do j = 1, min(8, n - l0)
+        l = l0 + j
+        v1 = ys(3, l)
+        v2 = ys(4, l)
+        a1 = -(f(1, l) + alpha*mass(l)*v1)/mass(l)
+        a2 = -(f(2, l) + alpha*mass(l)*v2)/mass(l)
+        f(1, l) = 0.0_wp
+        f(2, l) = 0.0_wp
+        ynew(1, l) = ynew(1, l) + wdt*v1
+        ynew(2, l) = ynew(2, l) + wdt*v2
+        ynew(3, l) = ynew(3, l) + wdt*a1
+        ynew(4, l) = ynew(4, l) + wdt*a2
+        part(j) = part(j) + ((ynew(1, l) + ynew(2, l)) + (ynew(3, l) + ynew(4, l)))
+      end do
+    end do
+    total = sum(part)
+  end subroutine rk4_last_pass
+end module iem_node_pass
