@@ -8,8 +8,10 @@
 !> st%p_damp1 when prepare evaluated them); step advances y to t + dt and adds the
 !> step's local external work and damping dissipation to w_ext, w_damp. An integrator that
 !> rejects non-finite states (rejects_nonfinite) leaves y at the state of t when a step is not
-!> accepted, with the rejected state in st%ynew; one that updates y in place always accepts,
-!> and the guards keep a copy of the last good state for it. Accepted states commit the
+!> accepted, with the rejected state in st%ynew; the ranks' agreement may complete later, in
+!> settle (the driver settles before it reads a state: after prepare, before a checkpoint or a
+!> repartition). One that updates y in place always accepts, and the guards keep a copy of
+!> the last good state for it. Accepted states commit the
 !> springs' history. One polymorphic call a step: nothing is dispatched per node or cell.
 module iem_integrator
   use mpi_f08, only: MPI_Comm
@@ -37,6 +39,7 @@ module iem_integrator
     procedure(integrator_prepare_i), deferred :: prepare
     procedure(integrator_step_i), deferred :: step
     procedure(integrator_resume_i), deferred :: resume
+    procedure :: settle => integrator_settle
   end type integrator_t
 
   abstract interface
@@ -109,6 +112,15 @@ module iem_integrator
   end interface
 
 contains
+
+  !> Whether the last step stands, once every rank agrees (an integrator whose agreement
+  !> completes later overrides this; here every step stands when step returns).
+  subroutine integrator_settle(this, st, accepted)
+    class(integrator_t), intent(inout) :: this
+    type(state_t), intent(inout) :: st
+    logical, intent(out) :: accepted
+    accepted = .true.
+  end subroutine integrator_settle
 
   !> Set the communicator over which the integrator agrees on a step's acceptance.
   subroutine integrator_init(this, comm)

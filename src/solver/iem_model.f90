@@ -81,8 +81,9 @@ module iem_model
     !> The terms of the last rate evaluation, kept so that global sums are exact and so
     !> independent of the partition: each local cell's energy (of the last committed or
     !> recorded evaluation) and damping power (the latter
-    !> only with stiffness damping), each owned node's mass-damping power (only with mass
-    !> damping), the power of each loaded node's loads and of each prescribed dof's reaction.
+    !> only with stiffness damping, else empty), each owned node's mass-damping power (only
+    !> with mass damping, else empty), the power of each loaded node's loads and of each
+    !> prescribed dof's reaction.
     real(wp), allocatable :: en_cell(:), pw_cell(:), pw_node(:), pe_slot(:), pr_bc(:)
     !> f_int - f_ext of the prescribed dofs of each owned node at the last committed
     !> evaluation (0 at free dofs): the reactions less the inertia of the prescribed motion.
@@ -113,7 +114,7 @@ contains
     type(local_lattice_t), intent(in) :: lat
     integer(i8), intent(out) :: n_selected(:)
     type(alloc_guard_t), intent(inout), optional :: guard
-    integer :: l, q, b, n, c, ld, ierr, mt, nm
+    integer :: l, q, b, n, c, ld, ierr, mt, nm, nd, na
     integer, allocatable :: cnt(:, :)
     logical, allocatable :: taken(:, :), mask(:)
     real(wp), allocatable :: weight(:), mcell(:)
@@ -306,10 +307,16 @@ contains
     this%plan = cell_chunks(lat%cell_nodes)
     this%rows = kernel_rows()
     allocate(this%f_ext_nodes(2, size(this%ext_node)), this%f_bc(size(this%bc_node)))
-    allocate(this%en_cell(lat%n_cells), this%pw_cell(lat%n_cells), this%pw_node(lat%n_owned), &
+    ! the damping powers only with that damping
+    nd = 0
+    if (this%beta > 0.0_wp) nd = lat%n_cells
+    na = 0
+    if (this%alpha > 0.0_wp) na = lat%n_owned
+    allocate(this%en_cell(lat%n_cells), this%pw_cell(nd), this%pw_node(na), &
              this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), &
              this%rbc(2, lat%n_owned), stat=ierr)
-    call g%note(ierr, 'the energy terms of the rank', 16.0_wp*lat%n_cells + 24.0_wp*lat%n_owned)
+    call g%note(ierr, 'the energy terms of the rank', 8.0_wp*(lat%n_cells + nd) + &
+                8.0_wp*(2*lat%n_owned + na))
     if (g%failed) then
       call g%pass(guard)
       return
@@ -414,6 +421,15 @@ contains
     end if
     accept = .false.
     if (present(commit)) accept = commit
+    ! the damping powers' terms exist only with that damping (set after init: made once here)
+    if (this%beta > 0.0_wp .and. size(this%pw_cell) < lat%n_cells) then
+      deallocate(this%pw_cell)
+      allocate(this%pw_cell(lat%n_cells), source=0.0_wp)
+    end if
+    if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) then
+      deallocate(this%pw_node)
+      allocate(this%pw_node(lat%n_owned), source=0.0_wp)
+    end if
     ! f holds zeros here (the node passes below clear what they read)
     if (this%nonlinear) then
       if (this%mixed) then

@@ -205,7 +205,7 @@ contains
   !> Documented at its interface in iem_simulation.f90.
   module procedure checkpoint_if_due
     integer :: sig
-    logical :: due
+    logical :: due, ok
     stat = 0
     msg = ''
     sig = 0
@@ -219,6 +219,12 @@ contains
       if (crossed(t_prev, t, this%cfg%run%checkpoint_interval)) due = .true.
     end if
     if (.not. due) return
+    ! the last step must stand on every rank before its state is written
+    call this%integ%settle(this%st, ok)
+    if (.not. ok) then
+      call stop_rejected(this, k - 1, t - this%dt, stat, msg)
+      return
+    end if
     call write_checkpoint(this, k, t, sig, stat, msg)
     if (stat /= 0) return
     if (sig /= 0) then

@@ -3,7 +3,8 @@
 !> puts it behind iem_integrator's interface: it rejects a step whose new state is not finite.
 module iem_rk4
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use mpi_f08, only: MPI_Allreduce, MPI_IN_PLACE, MPI_LOGICAL, MPI_LAND
+  use mpi_f08, only: MPI_Iallreduce, MPI_Wait, MPI_Request, MPI_LOGICAL, MPI_LAND, &
+                     MPI_STATUS_IGNORE, MPI_F_sync_reg
   use iem_kinds, only: wp
   use iem_constants, only: rk4_imag_limit
   use iem_stable_dt, only: rk4_stable_dt
@@ -23,10 +24,16 @@ module iem_rk4
   real(wp), parameter :: frac(4) = [0.0_wp, 0.5_wp, 0.5_wp, 1.0_wp]
 
   !> Classical RK4 as an integrator_t: rates evaluated at the top of every step, stages 2-4
-  !> and the update in step, which accepts only a finite new state (one reduction a step).
+  !> and the update in step, which accepts only a finite new state. Each rank tests its own
+  !> new state; the ranks agree on it with a non-blocking reduction that completes behind the
+  !> next step's halo exchange (settle), before anything overwrites the state it replaced.
   type, extends(integrator_t) :: rk4_t
     !> Whether the stage updates are fused into the evaluations' passes (4 values a node).
     logical :: fused = .false.
+    !> The agreement on the last step: pending, this rank's verdict, every rank's, whether
+    !> this rank swapped its new state in, and the request.
+    logical :: pending = .false., mine = .true., all = .true., swapped = .false.
+    type(MPI_Request) :: req
   contains
     procedure :: name => rk4_name
     procedure :: stable_dt => rk4_dt
@@ -36,6 +43,7 @@ module iem_rk4
     procedure :: prepare => rk4_prepare
     procedure :: step => rk4_step
     procedure :: resume => rk4_resume
+    procedure :: settle => rk4_settle
   end type rk4_t
 
 contains
@@ -79,8 +87,11 @@ contains
     real(wp), intent(in) :: t, dt
     logical, intent(in) :: first
     type(rk4_stage_t) :: stage
+    logical :: ok
     this%fused = size(st%y, 1) == 4
     if (.not. this%fused) then
+      call this%settle(st, ok)
+      if (.not. ok) return
       call state_rate(model, lat, halo, st, t)
       return
     end if
@@ -89,14 +100,18 @@ contains
     stage%h = frac(2)*dt
     call timer_start(t_halo)
     call halo%exchange(st%y)
+    ! the last step's agreement, due before the pass below overwrites the state it replaced
+    call this%settle(st, ok)
     call timer_stop(t_halo)
+    if (.not. ok) return
     call timer_start(t_force)
     call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1, commit=.true., stage=stage, &
                     ynew=st%ynew, ynext=st%ys)
     call timer_stop(t_force)
   end subroutine rk4_prepare
 
-  !> Stages 2-4 and the update, accepted only when every rank's new state is finite.
+  !> Stages 2-4 and the update: a finite new state is swapped in on this rank, and the ranks'
+  !> agreement is started (settle completes it; accepted is .true. until then).
   subroutine rk4_step(this, model, lat, halo, st, t, dt, w_ext, w_damp, accepted)
     class(rk4_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
@@ -106,9 +121,34 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     logical, intent(out) :: accepted
-    call rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, accepted, this%fused)
-    call MPI_Allreduce(MPI_IN_PLACE, accepted, 1, MPI_LOGICAL, MPI_LAND, this%comm)
+    call rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%mine, this%fused)
+    this%swapped = this%mine
+    call MPI_Iallreduce(this%mine, this%all, 1, MPI_LOGICAL, MPI_LAND, this%comm, this%req)
+    this%pending = .true.
+    accepted = .true.
   end subroutine rk4_step
+
+  !> Complete the ranks' agreement on the last step (at once if already complete); when some
+  !> rank's new state was not finite, every rank goes back: y holds the state before the
+  !> step again and st%ynew the rejected one, and accepted is .false. (until the next step).
+  subroutine rk4_settle(this, st, accepted)
+    class(rk4_t), intent(inout) :: this
+    type(state_t), intent(inout) :: st
+    logical, intent(out) :: accepted
+    real(wp), allocatable :: swap(:, :)
+    if (this%pending) then
+      call MPI_Wait(this%req, MPI_STATUS_IGNORE)
+      call MPI_F_sync_reg(this%all)
+      this%pending = .false.
+      if (.not. this%all .and. this%swapped) then
+        call move_alloc(st%y, swap)
+        call move_alloc(st%ynew, st%y)
+        call move_alloc(swap, st%ynew)
+        this%swapped = .false.
+      end if
+    end if
+    accepted = this%all
+  end subroutine rk4_settle
 
   !> Nothing: prepare evaluates the rates of the loaded state at the first step.
   subroutine rk4_resume(this, model, lat, halo, st, t)

@@ -433,11 +433,22 @@ contains
         call checkpoint_if_due(this, k, t, t_prev, stat, msg)
         if (stat /= 0) return
         if (k == int(this%cfg%run%repartition_step, i8)) then
+          call this%integ%settle(this%st, accepted)
+          if (.not. accepted) then
+            call stop_rejected(this, k - 1, t - this%dt, stat, msg)
+            return
+          end if
           call repartition_run(this, k, stat, msg)
           if (stat /= 0) return
         end if
       end if
       call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, this%dt, k == 0)
+      ! the last step stands once every rank agrees (RK4 agrees behind prepare's exchange)
+      call this%integ%settle(this%st, accepted)
+      if (.not. accepted) then
+        call stop_rejected(this, k - 1, t - this%dt, stat, msg)
+        return
+      end if
       if (mod(k, check_interval) == 0) then
         call check_state(this, k, t, stat, msg)
         if (stat /= 0) return

@@ -217,8 +217,8 @@ contains
     end do
   end subroutine damping_stresses
 
-  !> Edge strain rates d and corner shear rates r of a chunk's cells between the node rows bot, top (vertical edges v) for the
-  !> velocities wb, wt of the bottom and top node rows.
+  !> Edge strain rates d and corner shear rates r of a chunk's cells between the node rows
+  !> bot, top (vertical edges v) for the velocities wb, wt of the bottom and top node rows.
   pure subroutine strain_rates(k, m, bot, top, v, wb, wt, d, r)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
@@ -273,11 +273,12 @@ contains
     end do
   end subroutine strain_rates
 
-  !> The general path over a chunk of m cells between the node rows bot, top (vertical edges v; the damping velocities bw, tw,
-  !> and with filtered damping the velocities bp, tp, of its node rows 0..m): per cell its
-  !> shear measures and their gradients in arrays, the cell law (nonlinear with nl, by
-  !> material with ks), fracture (only with fr: dmg marks the n_dmg cells it reached),
-  !> damping (only when damped) and the corner forces fx, fy(cell, corner).
+  !> The general path over a chunk of m cells between the node rows bot, top (vertical edges
+  !> v; the damping velocities bw, tw, and with filtered damping the velocities bp, tp, of
+  !> its node rows 0..m): per cell its shear measures and their gradients in arrays, the cell
+  !> law (nonlinear with nl, by material with ks), fracture (only with fr: dmg marks the
+  !> n_dmg cells it reached), damping (only when damped) and the corner forces fx, fy(cell,
+  !> corner).
   pure subroutine chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, &
                                 fy, en, pw, dmg, n_dmg, nl, c_first, accept, ks, mat, fr, time)
     type(cell_constants_t), intent(in) :: k

@@ -75,17 +75,15 @@ contains
     y(3:4, :) = v
     call cell_forces(k, nodes, 4, y, beta, f, energy, damp_power)
   end subroutine cell_force
-  !> Nodal forces f(2, :) (internal + stiffness damping; added to f with add) of many cells for the state
-  !> y(4, :) = (u, v) of the nodes listed in cell_nodes, with the strain energy and the
-  !> damping power summed over the counted cells (those whose first corner is among the
-  !> first n_owned nodes). Each node's force is summed over its cells in the order of
-  !> cell_nodes' columns, and each cell's corner forces depend on its corners' values only,
-  !> so the same cells in the same order give bitwise the same forces whatever else the list
-  !> holds. Cells go in chunks of consecutive cells of a grid row (each sharing its left edge
-  !> with the right edge of the one before, as the lattice lists them): the chunk's two node
-  !> rows are gathered into unit-stride arrays, every edge's length and unit vector is
-  !> computed once, and each node's force is gathered from the chunk's cells; the loops
-  !> vectorise. Holes and the ends of a rank's rows only end chunks early.
+  !> Nodal forces f(2, :) (internal + stiffness damping; added to f with add) of many cells
+  !> for the state y(4, :) = (u, v) of the nodes listed in cell_nodes, with the strain
+  !> energy (when cell_energy is absent or kept) and the damping power summed over the
+  !> counted cells (those whose first corner is among the first n_owned nodes). Each node's
+  !> force is summed over its cells in the order of cell_nodes' columns, and each cell's
+  !> corner forces depend on its corners' values only, so the same cells in the same order
+  !> give bitwise the same forces whatever else the list holds. Cells go in the chunks of
+  !> plan (cell_chunks: consecutive cells of a grid row); docs/architecture.md, "The force
+  !> kernel", says how a chunk is evaluated.
   !> The stiffness damping acts on the velocities in rows damp_row:damp_row+1 of y (default 3,
   !> the velocities themselves; 5 for the filtered velocities of capped damping); the damping
   !> power is always taken with the velocities (rows 3:4). With nl (nonlinear springs of the
