@@ -5,7 +5,7 @@ module iem_timers
   use iem_kinds, only: wp, i8
   implicit none
   private
-  public :: timer_start, timer_stop, timer_total, timer_reset, peak_rss_bytes
+  public :: timer_start, timer_stop, timer_total, timer_reset, peak_rss_bytes, timer_switch
   public :: t_force, t_halo, t_update, t_output, n_timers, timer_names
 
   !> Timer ids.
@@ -15,6 +15,7 @@ module iem_timers
     'force evaluation', 'halo exchange', 'state updates', 'output']
 
   real(wp) :: total(n_timers) = 0.0_wp, started(n_timers) = 0.0_wp
+  logical :: running(n_timers) = .false.
 
 contains
 
@@ -22,12 +23,25 @@ contains
   subroutine timer_start(id)
     integer, intent(in) :: id
     started(id) = MPI_Wtime()
+    running(id) = .true.
   end subroutine timer_start
+
+  !> Stop timer from and start timer to, when from is running (else nothing; done tells
+  !> which): the time that follows counts as to's.
+  subroutine timer_switch(from, to, done)
+    integer, intent(in) :: from, to
+    logical, intent(out), optional :: done
+    if (present(done)) done = running(from)
+    if (.not. running(from)) return
+    call timer_stop(from)
+    call timer_start(to)
+  end subroutine timer_switch
 
   !> Stop timer id and add the elapsed time to its total.
   subroutine timer_stop(id)
     integer, intent(in) :: id
     total(id) = total(id) + (MPI_Wtime() - started(id))
+    running(id) = .false.
   end subroutine timer_stop
 
   !> Accumulated seconds of timer id.

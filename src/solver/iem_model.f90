@@ -22,6 +22,7 @@ module iem_model
   use iem_fracture, only: fracture_t
   use iem_fracture_law, only: fracture_law_t
   use iem_input_fracture, only: material_fracture_law
+  use iem_timers, only: timer_switch, t_force, t_update
   implicit none
   private
   public :: model_t
@@ -406,7 +407,7 @@ contains
     real(wp), intent(in), optional :: kick
     real(wp) :: r, a_imp
     integer :: l, b, ld, comp, n, s, ne
-    logical :: changed, accept, keep
+    logical :: changed, accept, keep, timed
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
@@ -528,6 +529,8 @@ contains
       l = this%ext_node(s)
       this%f(:, l) = this%f(:, l) - this%fext(:, s)
     end do
+    ! the pass over the nodes counts as the state updates (when the caller times the force)
+    call timer_switch(t_force, t_update, timed)
     if (present(stage)) then
       associate(n_o => lat%n_owned)
         select case (stage%stage)
@@ -543,6 +546,7 @@ contains
     else
       call accelerations(lat%n_owned, this%alpha, this%mass, y, this%f, acc, kick)
     end if
+    if (timed) call timer_switch(t_update, t_force)
     ! prescribed dofs: the imposed accelerations
     do n = 1, size(this%bc_node)
       b = this%bc_id(n)
