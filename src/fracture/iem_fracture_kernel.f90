@@ -98,32 +98,39 @@ contains
     type(fracture_t), intent(in) :: fr
     integer, intent(in) :: c_first, m
     real(wp), intent(in) :: ep(:, :), s(:, :)
-    real(wp) :: e_hi, e_lo, s_hi
-    integer :: c
-    intact = .false.
-    if (any(fr%hit(c_first:c_first + m - 1))) return
-    ! the largest stretch, compression and shear of the chunk, each only when some material
-    ! has that criterion
-    e_hi = 0.0_wp
-    e_lo = 0.0_wp
-    s_hi = 0.0_wp
-    if (fr%onset_min(crit_tension) < no_onset) then
-      do c = 1, m
-        e_hi = max(e_hi, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
+    integer :: c, q, n
+    real(wp) :: on_t, on_c, on_s
+    ! counts of comparisons (which vectorise, unlike a floating-point maximum): hit cells,
+    ! then strains past the smallest onset of each criterion some material has
+    n = 0
+    do c = c_first, c_first + m - 1
+      n = n + merge(1, 0, fr%hit(c))
+    end do
+    on_t = fr%onset_min(crit_tension)
+    on_c = fr%onset_min(crit_crushing)
+    on_s = fr%onset_min(crit_shear)
+    if (on_t < no_onset) then
+      do q = 1, 4
+        do c = 1, m
+          n = n + merge(1, 0, ep(c, q) > on_t)
+        end do
       end do
     end if
-    if (fr%onset_min(crit_crushing) < no_onset) then
-      do c = 1, m
-        e_lo = min(e_lo, ep(c, 1), ep(c, 2), ep(c, 3), ep(c, 4))
+    if (on_c < no_onset) then
+      do q = 1, 4
+        do c = 1, m
+          n = n + merge(1, 0, -ep(c, q) > on_c)
+        end do
       end do
     end if
-    if (fr%onset_min(crit_shear) < no_onset) then
-      do c = 1, m
-        s_hi = max(s_hi, abs(s(c, 1)), abs(s(c, 2)), abs(s(c, 3)), abs(s(c, 4)))
+    if (on_s < no_onset) then
+      do q = 1, 4
+        do c = 1, m
+          n = n + merge(1, 0, abs(s(c, q)) > on_s)
+        end do
       end do
     end if
-    intact = e_hi <= fr%onset_min(crit_tension) .and. -e_lo <= fr%onset_min(crit_crushing) &
-             .and. s_hi <= fr%onset_min(crit_shear)
+    intact = n == 0
   end function chunk_intact
 
   !> Add to diss the energy a cell of constants k and law lw releases by damage between its

@@ -77,7 +77,8 @@ module iem_model
     !> load entry n, bc_slot(q) that of prescribed dof q (0: the node carries no load).
     integer, allocatable :: ext_node(:), load_slot(:), bc_slot(:)
     real(wp), allocatable :: fext(:, :)
-    !> Strain energy of the counted cells at the last rate evaluation.
+    !> Scratch for the kernel's plain energy sum, which the model does not ask for (0): the
+    !> energies that a sample reports are the exact sums of en_cell.
     real(wp) :: energy = 0.0_wp
     !> The terms of the last rate evaluation, kept so that global sums are exact and so
     !> independent of the partition: each local cell's energy (of the last committed or
@@ -393,7 +394,7 @@ contains
     type(local_lattice_t), intent(in) :: lat
     real(wp), intent(inout), contiguous :: y(:, :)
     real(wp), intent(in) :: t
-    real(wp), intent(inout) :: acc(:, :)
+    real(wp), intent(inout), contiguous :: acc(:, :)
     real(wp), intent(out) :: p_ext, p_damp
     logical, intent(in), optional :: commit
     !> Keep the cells' energies (en_cell) also without commit (default: only with commit,

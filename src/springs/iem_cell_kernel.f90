@@ -77,7 +77,7 @@ contains
   end subroutine cell_force
   !> Nodal forces f(2, :) (internal + stiffness damping; added to f with add) of many cells
   !> for the state y(4, :) = (u, v) of the nodes listed in cell_nodes, with the strain
-  !> energy (when cell_energy is absent or kept) and the damping power summed over the
+  !> energy (only when cell_energy is absent, else 0) and the damping power summed over the
   !> counted cells (those whose first corner is among the first n_owned nodes). Each node's
   !> force is summed over its cells in the order of cell_nodes' columns, and each cell's
   !> corner forces depend on its corners' values only, so the same cells in the same order
@@ -168,8 +168,8 @@ contains
     hd = 0.0_wp
     ud = 0.0_wp
     pw = 0.0_wp
-    ! the sums over the counted cells: only when the cells' energies are not kept apart
-    sums = .not. present(cell_energy) .or. keep_energy
+    ! the energy summed over the counted cells: only when the cells' energies are not asked for
+    sums = .not. present(cell_energy)
     if (present(add)) then
       if (.not. add) f = 0.0_wp
     else
