@@ -26,6 +26,8 @@ module iem_halo
   contains
     procedure :: init => halo_init
     procedure :: exchange => halo_exchange
+    procedure :: start => halo_start
+    procedure :: finish => halo_finish
     procedure :: free => halo_free
   end type halo_t
 
@@ -54,10 +56,20 @@ contains
   end subroutine halo_init
 
   !> Fill the halo columns of y(width, n_local) with the owners' values; collective over
-  !> neighbours only.
+  !> neighbours only (start, then finish).
   subroutine halo_exchange(this, y)
     class(halo_t), intent(inout) :: this
     real(wp), intent(inout) :: y(:, :)
+    call this%start(y)
+    call this%finish(y)
+  end subroutine halo_exchange
+
+  !> Start the exchange of y's halo: post the receives, pack the owned values the neighbours
+  !> need and post the sends. Until finish, y's halo columns are not to be read and the
+  !> buffers belong to MPI; the owned columns may be read (they were copied).
+  subroutine halo_start(this, y)
+    class(halo_t), intent(inout) :: this
+    real(wp), intent(in) :: y(:, :)
     integer :: k, n, a, b, off, w
     if (this%n_neighbors == 0) return
     w = this%width
@@ -77,14 +89,25 @@ contains
       call MPI_Isend(this%send_buf(a:b), b - a + 1, mpi_wp(), this%rank(k), tag_halo, &
                      this%comm, this%req(this%n_neighbors + k))
     end do
+  end subroutine halo_start
+
+  !> Finish the exchange that start began: wait for the messages and fill the halo columns
+  !> of y with the received values.
+  subroutine halo_finish(this, y)
+    class(halo_t), intent(inout) :: this
+    real(wp), intent(inout) :: y(:, :)
+    integer :: n, a, off, w
+    if (this%n_neighbors == 0) return
+    w = this%width
     call MPI_Waitall(2*this%n_neighbors, this%req, MPI_STATUSES_IGNORE)
     call MPI_F_sync_reg(this%recv_buf)
+    call MPI_F_sync_reg(this%send_buf)
     a = this%recv_first(1)
     do n = a, this%recv_first(this%n_neighbors + 1) - 1
       off = w*(n - a)
       y(1:w, n) = this%recv_buf(off + 1:off + w)
     end do
-  end subroutine halo_exchange
+  end subroutine halo_finish
 
   !> Release the plan and buffers.
   subroutine halo_free(this)

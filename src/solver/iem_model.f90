@@ -1,6 +1,7 @@
 !> The elastic lattice model on one rank: spring constants, masses, loads, boundary
 !> conditions, damping, and the rate (accelerations) of the first-order system (u, v).
 module iem_model
+  use mpi_f08, only: MPI_Request
   use iem_kinds, only: wp, ip, i8
   use iem_config, only: config_t, time_function_spec_t
   use iem_grid, only: grid_t
@@ -10,6 +11,8 @@ module iem_model
   use iem_spring_constants, only: cell_constants_t, cell_constants
   use iem_cell_kernel, only: cell_forces, cell_chunks, kernel_rows
   use iem_cell_chunk, only: edge_row_t
+  use iem_cell_split, only: cell_split_t
+  use iem_halo, only: halo_t
   use iem_node_pass, only: rk4_stage_t, accelerations, rk4_first_pass, rk4_mid_pass, &
                            rk4_last_pass
   use iem_nonlinear_springs, only: nonlinear_springs_t, reference_strains
@@ -22,7 +25,6 @@ module iem_model
   use iem_fracture, only: fracture_t
   use iem_fracture_law, only: fracture_law_t
   use iem_input_fracture, only: material_fracture_law
-  use iem_timers, only: timer_switch, t_force, t_update
   implicit none
   private
   public :: model_t
@@ -68,6 +70,8 @@ module iem_model
     real(wp), allocatable :: f(:, :)
     !> The chunks of the local cell list for the force kernel (iem_cell_kernel's cell_chunks).
     integer, allocatable :: plan(:, :)
+    !> The interior and boundary chunks, for evaluations that overlap the halo exchange.
+    type(cell_split_t) :: split
     !> The force kernel's work space (its node rows, about 200 kB).
     type(edge_row_t), allocatable :: rows(:)
     !> Cell forces of the loaded nodes and of the prescribed dofs, for the reactions.
@@ -102,6 +106,48 @@ module iem_model
     procedure :: energy_sums => model_energy_sums
     procedure :: reaction_sums => model_reaction_sums
   end type model_t
+
+  interface
+    !> Accelerations acc(2, n_owned) of the owned nodes for the state y(4, n_local) (halo
+    !> columns up to date, or brought up to date here with halo) at time t; also the local
+    !> power of external forces (loads and support reactions) and of damping, for the energy
+    !> balance.
+    !> With nonlinear springs, commit = .true. accepts y: the springs' history moves to it
+    !> (default: trial only). With halo, the exchange of y's halo overlaps the interior cells'
+    !> forces (iem_cell_split; bitwise the same results); the caller times the call as force
+    !> evaluation, and the halo's share goes to the halo exchange's timer.
+    !> With stage (an RK4 stage of a model with 4 state values a node), the stage's update is
+    !> fused into the pass over the nodes instead (iem_node_pass; acc then holds only the
+    !> imposed accelerations of the prescribed dofs): stage 1 at y writes ynew and the next
+    !> stage state ynext; stages 2 and 3 at the stage state y add to ynew and turn y into the
+    !> next stage state from y0, the state at the start of the step; stage 4 adds to ynew and
+    !> sums it into stage%total. With kick (velocity Verlet), v += kick a follows in the pass.
+    module subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit, record, stage, &
+                                 y0, ynew, ynext, kick, halo, vote, vote_all)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+      real(wp), intent(inout), contiguous :: y(:, :)
+      real(wp), intent(in) :: t
+      real(wp), intent(inout), contiguous :: acc(:, :)
+      real(wp), intent(out) :: p_ext, p_damp
+      logical, intent(in), optional :: commit
+      !> Keep the cells' energies (en_cell) also without commit (default: only with commit,
+      !> the accepted states whose energies a history sample reports).
+      logical, intent(in), optional :: record
+      type(rk4_stage_t), intent(inout), optional :: stage
+      real(wp), intent(in), optional, contiguous :: y0(:, :)
+      real(wp), intent(inout), optional, contiguous :: ynew(:, :), ynext(:, :)
+      !> Velocity Verlet's second kick, fused into the pass: v += kick a (prescribed velocities
+      !> are the caller's to set afterwards).
+      real(wp), intent(in), optional :: kick
+      !> The halo exchange of y, done here.
+      type(halo_t), intent(inout), optional :: halo
+      !> A pending agreement (an MPI_Iallreduce into vote_all) that the pass over the nodes
+      !> waits for; when vote_all comes back .false. the pass is skipped (f is cleared).
+      type(MPI_Request), intent(inout), optional :: vote
+      logical, intent(inout), optional, asynchronous :: vote_all
+    end subroutine model_rate
+  end interface
 
 contains
 
@@ -307,6 +353,7 @@ contains
     end do
     call index_loaded_nodes(this, lat%n_owned)
     this%plan = cell_chunks(lat%cell_nodes)
+    call this%split%init(lat%cell_nodes, lat%n_owned, lat%n_local)
     this%rows = kernel_rows()
     allocate(this%f_ext_nodes(2, size(this%ext_node)), this%f_bc(size(this%bc_node)))
     ! the damping powers only with that damping
@@ -378,190 +425,6 @@ contains
     end do
   end subroutine model_prescribe
 
-  !> Accelerations acc(2, n_owned) of the owned nodes for the state y(4, n_local) (halo
-  !> columns up to date) at time t; also the local power of external forces (loads and
-  !> support reactions) and of damping, for the energy balance. With nonlinear springs,
-  !> commit = .true. accepts y: the springs' history moves to it (default: trial only).
-  !> With stage (an RK4 stage of a model with 4 state values a node), the stage's update is
-  !> fused into the pass over the nodes instead (iem_node_pass; acc then holds only the
-  !> imposed accelerations of the prescribed dofs): stage 1 at y writes ynew and the next
-  !> stage state ynext; stages 2 and 3 at the stage state y add to ynew and turn y into the
-  !> next stage state from y0, the state at the start of the step; stage 4 adds to ynew and
-  !> sums it into stage%total. With kick (velocity Verlet), v += kick a follows in the pass.
-  subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit, record, stage, y0, ynew, &
-                        ynext, kick)
-    class(model_t), intent(inout) :: this
-    type(local_lattice_t), intent(in) :: lat
-    real(wp), intent(inout), contiguous :: y(:, :)
-    real(wp), intent(in) :: t
-    real(wp), intent(inout), contiguous :: acc(:, :)
-    real(wp), intent(out) :: p_ext, p_damp
-    logical, intent(in), optional :: commit
-    !> Keep the cells' energies (en_cell) also without commit (default: only with commit,
-    !> the accepted states whose energies a history sample reports).
-    logical, intent(in), optional :: record
-    type(rk4_stage_t), intent(inout), optional :: stage
-    real(wp), intent(in), optional, contiguous :: y0(:, :)
-    real(wp), intent(inout), optional, contiguous :: ynew(:, :), ynext(:, :)
-    !> Velocity Verlet's second kick, fused into the pass: v += kick a (prescribed velocities
-    !> are the caller's to set afterwards).
-    real(wp), intent(in), optional :: kick
-    real(wp) :: r, a_imp
-    integer :: l, b, ld, comp, n, s, ne
-    logical :: changed, accept, keep, timed
-
-    ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
-    ! bitwise the same on any number of ranks; energy and damping power of counted cells
-    ne = 0
-    keep = .false.
-    if (present(commit)) then
-      if (commit) ne = lat%n_cells
-      keep = commit
-    end if
-    if (present(record)) then
-      if (record) ne = lat%n_cells
-    end if
-    accept = .false.
-    if (present(commit)) accept = commit
-    ! the damping powers' terms exist only with that damping (set after init: made once here)
-    if (this%beta > 0.0_wp .and. size(this%pw_cell) < lat%n_cells) then
-      deallocate(this%pw_cell)
-      allocate(this%pw_cell(lat%n_cells), source=0.0_wp)
-    end if
-    if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) then
-      deallocate(this%pw_node)
-      allocate(this%pw_node(lat%n_owned), source=0.0_wp)
-    end if
-    ! f holds zeros here (the node passes below clear what they read)
-    if (this%nonlinear) then
-      if (this%mixed) then
-        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                         this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
-                         lat%cell_mat, this%en_cell(1:ne), this%pw_cell, plan=this%plan, &
-                                                    add=.true., rows=this%rows)
-      else
-        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                         this%energy, p_damp, this%n_state - 1, this%nl, accept, &
-                         cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, &
-                         plan=this%plan, add=.true., rows=this%rows)
-      end if
-    else if (this%fracture) then
-      if (this%mixed) then
-        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                         this%energy, p_damp, this%n_state - 1, commit=accept, ks=this%ks, &
-                         cell_mat=lat%cell_mat, cell_energy=this%en_cell(1:ne), &
-                         cell_power=this%pw_cell, fr=this%fr, time=t, plan=this%plan, &
-                             add=.true., rows=this%rows)
-      else
-        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                         this%energy, p_damp, this%n_state - 1, commit=accept, &
-                         cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, fr=this%fr, &
-                         time=t, plan=this%plan, add=.true., rows=this%rows)
-      end if
-    else if (this%mixed) then
-      call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                       this%energy, p_damp, this%n_state - 1, ks=this%ks, cell_mat=lat%cell_mat, &
-                       cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, plan=this%plan, &
-                       add=.true., rows=this%rows)
-    else
-      call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
-                       this%energy, p_damp, this%n_state - 1, cell_energy=this%en_cell(1:ne), &
-                       cell_power=this%pw_cell, plan=this%plan, add=.true., rows=this%rows)
-    end if
-    ! external loads: rebuilt only when a time function has changed
-    changed = .false.
-    do ld = 1, size(this%load_tf)
-      r = tf_value(this%load_tf(ld), t)
-      if (r /= this%load_scale(ld)) changed = .true.
-      this%load_scale(ld) = r
-    end do
-    if (changed) then
-      this%fext = 0.0_wp
-      do n = 1, size(this%load_node)
-        s = this%load_slot(n)
-        this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
-      end do
-    end if
-    ! the cell forces of the loaded nodes and of the prescribed dofs, for the reactions; the
-    ! halo nodes' forces are not used
-    do s = 1, size(this%ext_node)
-      this%f_ext_nodes(:, s) = this%f(:, this%ext_node(s))
-    end do
-    do n = 1, size(this%bc_node)
-      this%f_bc(n) = this%f(this%bc_comp(n), this%bc_node(n))
-    end do
-    this%f(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
-    ! powers at the evaluated state (before a fused RK4 pass moves y on): of the loads, of
-    ! the support reactions (which need the imposed accelerations), of mass damping
-    p_ext = 0.0_wp
-    do s = 1, size(this%ext_node)
-      l = this%ext_node(s)
-      this%pe_slot(s) = this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
-      p_ext = p_ext + this%pe_slot(s)
-    end do
-    do n = 1, size(this%bc_node)
-      l = this%bc_node(n)
-      comp = this%bc_comp(n)
-      b = this%bc_id(n)
-      this%pr_bc(n) = 0.0_wp
-      if (t >= this%bc_release(b)) cycle
-      a_imp = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
-      if (keep) then
-        this%rbc(comp, l) = this%f_bc(n)
-        if (this%bc_slot(n) > 0) this%rbc(comp, l) = this%rbc(comp, l) - &
-                                                      this%fext(comp, this%bc_slot(n))
-      end if
-      if (y(2 + comp, l) /= 0.0_wp) then
-        r = this%mass(l)*(a_imp + this%alpha*y(2 + comp, l)) + this%f_bc(n)
-        if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
-        this%pr_bc(n) = r*y(2 + comp, l)
-        p_ext = p_ext + this%pr_bc(n)
-      end if
-    end do
-    if (this%alpha > 0.0_wp) then
-      do l = 1, lat%n_owned
-        this%pw_node(l) = this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
-        p_damp = p_damp + this%pw_node(l)
-      end do
-    end if
-    ! the loads act as negative cell forces; then the pass over the owned nodes, which clears
-    ! f: accelerations, or an RK4 stage's update
-    do s = 1, size(this%ext_node)
-      l = this%ext_node(s)
-      this%f(:, l) = this%f(:, l) - this%fext(:, s)
-    end do
-    ! the pass over the nodes counts as the state updates (when the caller times the force)
-    call timer_switch(t_force, t_update, timed)
-    if (present(stage)) then
-      associate(n_o => lat%n_owned)
-        select case (stage%stage)
-        case (1)
-          call rk4_first_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y, this%f, ynew, &
-                              ynext)
-        case (2, 3)
-          call rk4_mid_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y0, this%f, ynew, y)
-        case default
-          call rk4_last_pass(n_o, this%alpha, this%mass, stage%wdt, y, this%f, ynew, stage%total)
-        end select
-      end associate
-    else
-      call accelerations(lat%n_owned, this%alpha, this%mass, y, this%f, acc, kick)
-    end if
-    if (timed) call timer_switch(t_update, t_force)
-    ! prescribed dofs: the imposed accelerations
-    do n = 1, size(this%bc_node)
-      b = this%bc_id(n)
-      if (t >= this%bc_release(b)) cycle
-      comp = this%bc_comp(n)
-      acc(comp, this%bc_node(n)) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
-    end do
-    ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
-    if (this%omega_cap > 0.0_wp) then
-      do l = 1, lat%n_owned
-        acc(3:4, l) = this%omega_cap*(y(3:4, l) - y(5:6, l))
-      end do
-    end if
-  end subroutine model_rate
 
   !> Add the powers of the last rate evaluation, each times wdt (its weight in the time
   !> integral of the step), to the external work and the damping dissipation, exactly; the

@@ -13,7 +13,7 @@ module iem_rk4
   use iem_halo, only: halo_t
   use iem_model, only: model_t
   use iem_state, only: state_t, state_rate
-  use iem_timers, only: timer_start, timer_stop, t_force, t_halo, t_update
+  use iem_timers, only: timer_start, timer_stop, t_force, t_update
   use iem_node_pass, only: rk4_stage_t
   implicit none
   private
@@ -98,15 +98,18 @@ contains
     stage%stage = 1
     stage%wdt = weight(1)*dt
     stage%h = frac(2)*dt
-    call timer_start(t_halo)
-    call halo%exchange(st%y)
-    ! the last step's agreement, due before the pass below overwrites the state it replaced
-    call this%settle(st, ok)
-    call timer_stop(t_halo)
-    if (.not. ok) return
+    ! the last step's agreement is waited for inside the evaluation, after its halo exchange
+    ! and cell forces and before its pass overwrites the state the step replaced
     call timer_start(t_force)
-    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1, commit=.true., stage=stage, &
-                    ynew=st%ynew, ynext=st%ys)
+    if (this%pending) then
+      call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1, commit=.true., stage=stage, &
+                      ynew=st%ynew, ynext=st%ys, halo=halo, vote=this%req, vote_all=this%all)
+      this%pending = .false.
+      call this%settle(st, ok)
+    else
+      call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1, commit=.true., stage=stage, &
+                      ynew=st%ynew, ynext=st%ys, halo=halo)
+    end if
     call timer_stop(t_force)
   end subroutine rk4_prepare
 
@@ -140,12 +143,12 @@ contains
       call MPI_Wait(this%req, MPI_STATUS_IGNORE)
       call MPI_F_sync_reg(this%all)
       this%pending = .false.
-      if (.not. this%all .and. this%swapped) then
-        call move_alloc(st%y, swap)
-        call move_alloc(st%ynew, st%y)
-        call move_alloc(swap, st%ynew)
-        this%swapped = .false.
-      end if
+    end if
+    if (.not. this%all .and. this%swapped) then
+      call move_alloc(st%y, swap)
+      call move_alloc(st%ynew, st%y)
+      call move_alloc(swap, st%ynew)
+      this%swapped = .false.
     end if
     accepted = this%all
   end subroutine rk4_settle
@@ -195,9 +198,6 @@ contains
     do stage = 2, 4
       call model%prescribe(st%ys, t + frac(stage)*dt)
       call timer_stop(t_update)
-      call timer_start(t_halo)
-      call halo%exchange(st%ys)
-      call timer_stop(t_halo)
       call timer_start(t_force)
       if (fuse) then
         stg%stage = stage
@@ -205,10 +205,10 @@ contains
         stg%h = 0.0_wp
         if (stage < 4) stg%h = frac(stage + 1)*dt
         call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp, stage=stg, &
-                        y0=st%y, ynew=st%ynew)
+                        y0=st%y, ynew=st%ynew, halo=halo)
         total = stg%total
       else
-        call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp)
+        call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp, halo=halo)
       end if
       call timer_stop(t_force)
       call timer_start(t_update)

@@ -6,7 +6,7 @@ module iem_state
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_model, only: model_t
-  use iem_timers, only: timer_start, timer_stop, t_force, t_halo
+  use iem_timers, only: timer_start, timer_stop, t_force
   use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
@@ -69,7 +69,7 @@ contains
   end subroutine state_init
 
   !> Exchange the halo of y and evaluate the rates at time t into st%acc (with the powers
-  !> p_ext1, p_damp1): the first stage of a step, kept apart so the caller can record the
+  !> p_ext1, p_damp1; the exchange overlaps the evaluation): the first stage of a step, kept apart so the caller can record the
   !> energies and output of the state y, which this evaluation provides. y is an accepted
   !> state: nonlinear springs commit their history to it.
   subroutine state_rate(model, lat, halo, st, t)
@@ -78,11 +78,8 @@ contains
     type(halo_t), intent(inout) :: halo
     type(state_t), intent(inout) :: st
     real(wp), intent(in) :: t
-    call timer_start(t_halo)
-    call halo%exchange(st%y)
-    call timer_stop(t_halo)
     call timer_start(t_force)
-    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1, commit=.true.)
+    call model%rate(lat, st%y, t, st%acc, st%p_ext1, st%p_damp1, commit=.true., halo=halo)
     call timer_stop(t_force)
   end subroutine state_rate
 end module iem_state

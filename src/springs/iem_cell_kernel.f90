@@ -100,7 +100,7 @@ contains
   !> time (iem_fracture_kernel).
   pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
                               nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, plan, &
-                              add, rows)
+                              add, rows, route_at, route, side)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in), contiguous :: cell_nodes(:, :)
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
@@ -124,6 +124,11 @@ contains
     logical, intent(in), optional :: add
     !> Work space: node rows (kernel_rows(); made here when absent).
     type(edge_row_t), intent(inout), optional, target :: rows(:)
+    !> Routed chunks (iem_cell_split): route_at(j) > 0 when chunk j's corner forces are routed:
+    !> corner q of its cell i by route(route_at(j) + 4*(i - 1) + q - 1): 0 added to f, r > 0
+    !> stored in side(:, r), < 0 dropped; route_at(j) = 0: added to f as usual.
+    integer, intent(in), optional, contiguous :: route_at(:), route(:)
+    real(wp), intent(inout), optional, contiguous :: side(:, :)
     ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
     ! (w) and, with filtered damping, the velocities (p)
     integer :: bn(0:chunk), tn(0:chunk)
@@ -272,7 +277,10 @@ contains
         end if
       end if
       end associate
-      if (consec) then
+      if (routed(ic)) then
+        call add_routed_forces(m, cell_nodes(:, c0:c0 + m - 1), route(route_at(ic):), fx, fy, f, &
+                               side)
+      else if (consec) then
         call add_block_forces(m, f(:, b0:b0 + m), f(:, t0:t0 + m), fx, fy)
       else
         call add_node_forces(m, bn, tn, fx, fy, f)
@@ -311,6 +319,13 @@ contains
       end if
     end function n_chunks
 
+    !> Whether chunk j's corner forces are routed.
+    pure logical function routed(j)
+      integer, intent(in) :: j
+      routed = .false.
+      if (present(route_at)) routed = route_at(j) > 0
+    end function routed
+
     !> Chunk j: its first cell, its number of cells, whether its node rows are consecutive,
     !> its first bottom and top nodes.
     pure subroutine chunk_of(j, first, n, cons, b, t)
@@ -344,8 +359,10 @@ contains
   !> the first cell's bottom-left and top-left nodes).
   !> A chunk holds up to 64 consecutive cells each sharing its left edge with the right edge
   !> of the one before (a run of a grid row), so holes and a rank's row ends end chunks.
-  pure function cell_chunks(cell_nodes) result(plan)
+  !> With kind (one a cell), a chunk also ends where the kind changes.
+  pure function cell_chunks(cell_nodes, kind) result(plan)
     integer, intent(in) :: cell_nodes(:, :)
+    logical, intent(in), optional :: kind(:)
     integer, allocatable :: plan(:, :)
     integer :: nc, c0, m, n, pass
     nc = size(cell_nodes, 2)
@@ -358,6 +375,9 @@ contains
         do while (m < chunk .and. c0 + m <= nc)
           if (cell_nodes(1, c0 + m) /= cell_nodes(2, c0 + m - 1) .or. &
               cell_nodes(4, c0 + m) /= cell_nodes(3, c0 + m - 1)) exit
+          if (present(kind)) then
+            if (kind(c0 + m) .neqv. kind(c0)) exit
+          end if
           m = m + 1
         end do
         n = n + 1
@@ -444,6 +464,29 @@ contains
     f(1, tn(m)) = f(1, tn(m)) + fx(m, 3)
     f(2, tn(m)) = f(2, tn(m)) + fy(m, 3)
   end subroutine add_node_forces
+
+  !> Route the corner forces fx, fy(cell, corner) of a chunk's m cells (corners cn(:, 1:m)):
+  !> corner q of cell i by rt(4*(i - 1) + q): 0 added to its node's force in f, r > 0 stored
+  !> in side(:, r), < 0 dropped. Each node's additions to f come in cell order.
+  pure subroutine add_routed_forces(m, cn, rt, fx, fy, f, side)
+    integer, intent(in) :: m, cn(:, :), rt(:)
+    real(wp), intent(in) :: fx(chunk, 4), fy(chunk, 4)
+    real(wp), intent(inout), contiguous :: f(:, :), side(:, :)
+    integer :: i, q, r, n
+    do i = 1, m
+      do q = 1, 4
+        r = rt(4*(i - 1) + q)
+        if (r == 0) then
+          n = cn(q, i)
+          f(1, n) = f(1, n) + fx(i, q)
+          f(2, n) = f(2, n) + fy(i, q)
+        else if (r > 0) then
+          side(1, r) = fx(i, q)
+          side(2, r) = fy(i, q)
+        end if
+      end do
+    end do
+  end subroutine add_routed_forces
 
   !> add_node_forces for consecutively numbered node rows: the forces fb, ft of the bottom
   !> and top rows' nodes 0..m.

@@ -1,0 +1,229 @@
+!> The rate evaluation of the lattice model (model_rate, documented at its interface in
+!> iem_model.f90): the cell forces, with or without the overlapped halo exchange, the loads
+!> and reactions, the powers, and the pass over the owned nodes.
+submodule (iem_model) iem_model_rate
+  use mpi_f08, only: MPI_Wait, MPI_STATUS_IGNORE, MPI_F_sync_reg
+  use iem_timers, only: timer_switch, t_force, t_halo, t_update
+  implicit none
+
+contains
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_rate
+    real(wp) :: r, a_imp
+    integer :: l, b, ld, comp, n, s, ne, c
+    logical :: changed, accept, keep, timed
+
+    ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
+    ! bitwise the same on any number of ranks; energy and damping power of counted cells
+    ne = 0
+    keep = .false.
+    if (present(commit)) then
+      if (commit) ne = lat%n_cells
+      keep = commit
+    end if
+    if (present(record)) then
+      if (record) ne = lat%n_cells
+    end if
+    accept = .false.
+    if (present(commit)) accept = commit
+    ! the damping powers' terms exist only with that damping (set after init: made once here)
+    if (this%beta > 0.0_wp .and. size(this%pw_cell) < lat%n_cells) then
+      deallocate(this%pw_cell)
+      allocate(this%pw_cell(lat%n_cells), source=0.0_wp)
+    end if
+    if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) then
+      deallocate(this%pw_node)
+      allocate(this%pw_node(lat%n_owned), source=0.0_wp)
+    end if
+    ! f holds zeros here (the node passes below clear what they read)
+    if (.not. present(halo)) then
+      call cells(this%plan)
+    else if (.not. this%split%active) then
+      call halo_part(1)
+      call cells(this%plan)
+    else
+      ! the interior cells while the halo values travel, then the boundary cells; the nodes
+      ! of D get their cells' forces summed in cell order; so does the damping power
+      call halo_part(2)
+      call cells(this%split%plan_in, this%split%at_in)
+      call halo_part(3)
+      call cells(this%split%plan_bd, this%split%at_bd)
+      call this%split%sum_side(this%f)
+      p_damp = 0.0_wp
+      if (this%beta > 0.0_wp) then
+        do c = 1, lat%n_cells
+          if (lat%cell_nodes(1, c) <= lat%n_owned) p_damp = p_damp + this%pw_cell(c)
+        end do
+      end if
+    end if
+    ! external loads: rebuilt only when a time function has changed
+    changed = .false.
+    do ld = 1, size(this%load_tf)
+      r = tf_value(this%load_tf(ld), t)
+      if (r /= this%load_scale(ld)) changed = .true.
+      this%load_scale(ld) = r
+    end do
+    if (changed) then
+      this%fext = 0.0_wp
+      do n = 1, size(this%load_node)
+        s = this%load_slot(n)
+        this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+      end do
+    end if
+    ! the cell forces of the loaded nodes and of the prescribed dofs, for the reactions; the
+    ! halo nodes' forces are not used
+    do s = 1, size(this%ext_node)
+      this%f_ext_nodes(:, s) = this%f(:, this%ext_node(s))
+    end do
+    do n = 1, size(this%bc_node)
+      this%f_bc(n) = this%f(this%bc_comp(n), this%bc_node(n))
+    end do
+    this%f(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
+    ! powers at the evaluated state (before a fused RK4 pass moves y on): of the loads, of
+    ! the support reactions (which need the imposed accelerations), of mass damping
+    p_ext = 0.0_wp
+    do s = 1, size(this%ext_node)
+      l = this%ext_node(s)
+      this%pe_slot(s) = this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
+      p_ext = p_ext + this%pe_slot(s)
+    end do
+    do n = 1, size(this%bc_node)
+      l = this%bc_node(n)
+      comp = this%bc_comp(n)
+      b = this%bc_id(n)
+      this%pr_bc(n) = 0.0_wp
+      if (t >= this%bc_release(b)) cycle
+      a_imp = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
+      if (keep) then
+        this%rbc(comp, l) = this%f_bc(n)
+        if (this%bc_slot(n) > 0) this%rbc(comp, l) = this%rbc(comp, l) - &
+                                                      this%fext(comp, this%bc_slot(n))
+      end if
+      if (y(2 + comp, l) /= 0.0_wp) then
+        r = this%mass(l)*(a_imp + this%alpha*y(2 + comp, l)) + this%f_bc(n)
+        if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
+        this%pr_bc(n) = r*y(2 + comp, l)
+        p_ext = p_ext + this%pr_bc(n)
+      end if
+    end do
+    if (this%alpha > 0.0_wp) then
+      do l = 1, lat%n_owned
+        this%pw_node(l) = this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
+        p_damp = p_damp + this%pw_node(l)
+      end do
+    end if
+    ! the loads act as negative cell forces; then the pass over the owned nodes, which clears
+    ! f: accelerations, or an RK4 stage's update
+    do s = 1, size(this%ext_node)
+      l = this%ext_node(s)
+      this%f(:, l) = this%f(:, l) - this%fext(:, s)
+    end do
+    ! a pending agreement on the state the pass is about to overwrite (RK4's last step)
+    if (present(vote) .and. present(vote_all)) then
+      call timer_switch(t_force, t_halo, timed)
+      call MPI_Wait(vote, MPI_STATUS_IGNORE)
+      call MPI_F_sync_reg(vote_all)
+      if (timed) call timer_switch(t_halo, t_force)
+      if (.not. vote_all) then
+        this%f = 0.0_wp
+        return
+      end if
+    end if
+    ! the pass over the nodes counts as the state updates (when the caller times the force)
+    call timer_switch(t_force, t_update, timed)
+    if (present(stage)) then
+      associate(n_o => lat%n_owned)
+        select case (stage%stage)
+        case (1)
+          call rk4_first_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y, this%f, ynew, &
+                              ynext)
+        case (2, 3)
+          call rk4_mid_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y0, this%f, ynew, y)
+        case default
+          call rk4_last_pass(n_o, this%alpha, this%mass, stage%wdt, y, this%f, ynew, stage%total)
+        end select
+      end associate
+    else
+      call accelerations(lat%n_owned, this%alpha, this%mass, y, this%f, acc, kick)
+    end if
+    if (timed) call timer_switch(t_update, t_force)
+    ! prescribed dofs: the imposed accelerations
+    do n = 1, size(this%bc_node)
+      b = this%bc_id(n)
+      if (t >= this%bc_release(b)) cycle
+      comp = this%bc_comp(n)
+      acc(comp, this%bc_node(n)) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
+    end do
+    ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
+    if (this%omega_cap > 0.0_wp) then
+      do l = 1, lat%n_owned
+        acc(3:4, l) = this%omega_cap*(y(3:4, l) - y(5:6, l))
+      end do
+    end if
+  contains
+
+    !> The halo exchange (1), its start (2) or its finish (3), timed as such.
+    subroutine halo_part(part)
+      integer, intent(in) :: part
+      logical :: switched
+      call timer_switch(t_force, t_halo, switched)
+      select case (part)
+      case (1)
+        call halo%exchange(y)
+      case (2)
+        call halo%start(y)
+      case default
+        call halo%finish(y)
+      end select
+      if (switched) call timer_switch(t_halo, t_force)
+    end subroutine halo_part
+
+    !> The cell forces of the chunks of plan (with at, those of the split's routed chunks).
+    subroutine cells(plan, at)
+      integer, intent(in), contiguous :: plan(:, :)
+      integer, intent(in), optional, contiguous :: at(:)
+      if (this%nonlinear) then
+        if (this%mixed) then
+          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                           this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
+                           lat%cell_mat, this%en_cell(1:ne), this%pw_cell, plan=plan, &
+                           add=.true., rows=this%rows, route_at=at, route=this%split%route, &
+                           side=this%split%side)
+        else
+          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                           this%energy, p_damp, this%n_state - 1, this%nl, accept, &
+                           cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, &
+                           plan=plan, add=.true., rows=this%rows, route_at=at, &
+                           route=this%split%route, side=this%split%side)
+        end if
+      else if (this%fracture) then
+        if (this%mixed) then
+          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                           this%energy, p_damp, this%n_state - 1, commit=accept, ks=this%ks, &
+                           cell_mat=lat%cell_mat, cell_energy=this%en_cell(1:ne), &
+                           cell_power=this%pw_cell, fr=this%fr, time=t, plan=plan, &
+                           add=.true., rows=this%rows, route_at=at, route=this%split%route, &
+                           side=this%split%side)
+        else
+          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                           this%energy, p_damp, this%n_state - 1, commit=accept, &
+                           cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, &
+                           fr=this%fr, time=t, plan=plan, add=.true., rows=this%rows, &
+                           route_at=at, route=this%split%route, side=this%split%side)
+        end if
+      else if (this%mixed) then
+        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                         this%energy, p_damp, this%n_state - 1, ks=this%ks, &
+                         cell_mat=lat%cell_mat, cell_energy=this%en_cell(1:ne), &
+                         cell_power=this%pw_cell, plan=plan, add=.true., rows=this%rows, &
+                         route_at=at, route=this%split%route, side=this%split%side)
+      else
+        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+                         this%energy, p_damp, this%n_state - 1, cell_energy=this%en_cell(1:ne), &
+                         cell_power=this%pw_cell, plan=plan, add=.true., rows=this%rows, &
+                         route_at=at, route=this%split%route, side=this%split%side)
+      end if
+    end subroutine cells
+  end procedure model_rate
+end submodule iem_model_rate
