@@ -86,21 +86,27 @@ contains
         nl%work(i0 + k) = nl%work(i0 + k) + dw(k)
       end do
     end if
+    ! the work of each cell, summed in the order of its springs (with accept, the work moved
+    ! to this state), for the cells side by side
+    en(1:m) = 0.0_wp
+    if (accept) then
+      do j = 1, springs_per_cell
+        do c = 1, m
+          en(c) = en(c) + nl%work(i0 + springs_per_cell*(c - 1) + j)
+        end do
+      end do
+    else
+      do j = 1, springs_per_cell
+        do c = 1, m
+          k = springs_per_cell*(c - 1) + j
+          en(c) = en(c) + nl%work(i0 + k) + dw(k)
+        end do
+      end do
+    end if
     mc = 1
     do c = 1, m
       if (present(mat)) mc = mat(c)
       k = springs_per_cell*(c - 1)
-      ! the work in the order of the springs (with accept, the work moved to this state)
-      en(c) = 0.0_wp
-      if (accept) then
-        do j = 1, springs_per_cell
-          en(c) = en(c) + nl%work(i0 + k + j)
-        end do
-      else
-        do j = 1, springs_per_cell
-          en(c) = en(c) + nl%work(i0 + k + j) + dw(k + j)
-        end do
-      end if
       ! g_q = 2 ce psi_q + 2 ch (psi_Poisson(q) + psi_Poisson(q + 1))
       g(c, 1) = nl%c2(1, mc)*psi(k + 1) + nl%c2(2, mc)*(psi(k + 5) + psi(k + 6))
       g(c, 2) = nl%c2(1, mc)*psi(k + 2) + nl%c2(2, mc)*(psi(k + 6) + psi(k + 7))
