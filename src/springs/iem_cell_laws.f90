@@ -5,9 +5,8 @@
 module iem_cell_laws
   use iem_kinds, only: wp, ip
   use iem_spring_constants, only: cell_constants_t, law_bending
-  use iem_nonlinear_springs, only: nonlinear_springs_t, springs_per_cell, spring_kind, &
-                                   spring_strains
-  use iem_masing, only: masing_trial, masing_commit, masing_mirror_strain
+  use iem_nonlinear_springs, only: nonlinear_springs_t, springs_per_cell, spring_kind
+  use iem_masing, only: masing_springs, masing_constants, n_masing_constants
   implicit none
   private
   public :: chunk, cell_law, cell_law_mixed, nonlinear_law
@@ -20,7 +19,9 @@ contains
   !> spring's normalised stress psi from its committed history at its current strain (and,
   !> with accept, the history moved there), the generalised stresses g = 2 ce psi_edge +
   !> 2 ch (psi_Poisson at both ends of the edge), t = 2 cg psi_shear, and the work done on the
-  !> cell's springs up to this state (trapezoidal increments from the committed state).
+  !> cell's springs up to this state (trapezoidal increments from the committed state). The
+  !> chunk's springs go through iem_masing's masing_springs together (a branch-free loop for
+  !> the springs that stay on their curve, the state machine for the others).
   pure subroutine nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat)
     type(nonlinear_springs_t), intent(inout) :: nl
     integer, intent(in) :: c_first, m
@@ -29,99 +30,94 @@ contains
     real(wp), intent(out) :: g(chunk, 4), t(chunk, 4), en(chunk)
     !> Material of each cell of the chunk (absent: material 1).
     integer, intent(in), optional :: mat(:)
-    real(wp) :: e(springs_per_cell), psi(springs_per_cell), tan, dw, e_old, psi_old, er, x
-    integer :: c, j, i, kind, mc
-    logical :: fast
+    integer, parameter :: ns_max = springs_per_cell*chunk
+    ! per spring of the chunk (spring j of cell c at 12 (c - 1) + j, as in nl%state): its
+    ! strain, its stress, the committed strain and stress before this call, the law's
+    ! constants, half the energy coefficient, and the work increment
+    real(wp) :: e(ns_max), psi(ns_max), e_old(ns_max), psi_old(ns_max)
+    real(wp) :: p(ns_max, n_masing_constants), hc(ns_max), dw(ns_max)
+    real(wp) :: q(springs_per_cell, n_masing_constants + 1)
+    integer :: c, j, k, i0, ns, mc, mq, kind
+    mc = 1
+    mq = 0
+    i0 = springs_per_cell*(c_first - 1)
+    ns = springs_per_cell*m
+    do c = 1, m
+      if (present(mat)) mc = mat(c)
+      if (mc /= mq) then
+        ! the constants of each spring of a cell of material mc
+        do j = 1, springs_per_cell
+          kind = spring_kind(j)
+          q(j, 1:n_masing_constants) = masing_constants(nl%er_pos(kind, mc), &
+                                                        nl%er_neg(kind, mc))
+          q(j, n_masing_constants + 1) = 0.5_wp*nl%c2(kind, mc)
+        end do
+        mq = mc
+      end if
+      ! the cell's spring strains (iem_nonlinear_springs' spring_strains)
+      k = springs_per_cell*(c - 1)
+      e(k + 1) = ep(c, 1)
+      e(k + 2) = ep(c, 2)
+      e(k + 3) = ep(c, 3)
+      e(k + 4) = ep(c, 4)
+      e(k + 5) = ep(c, 1) + ep(c, 4)
+      e(k + 6) = ep(c, 2) + ep(c, 1)
+      e(k + 7) = ep(c, 3) + ep(c, 2)
+      e(k + 8) = ep(c, 4) + ep(c, 3)
+      e(k + 9) = s(c, 1)
+      e(k + 10) = s(c, 2)
+      e(k + 11) = s(c, 3)
+      e(k + 12) = s(c, 4)
+      p(k + 1:k + springs_per_cell, :) = q(:, 1:n_masing_constants)
+      hc(k + 1:k + springs_per_cell) = q(:, n_masing_constants + 1)
+    end do
+    associate(st => nl%state)
+      call masing_springs(ns, int(st%depth), e, p, accept, st%strain(i0 + 1:i0 + ns), &
+                          st%stress(i0 + 1:i0 + ns), st%dir(i0 + 1:i0 + ns), &
+                          st%count(i0 + 1:i0 + ns), st%e_rev(:, i0 + 1:i0 + ns), &
+                          st%s_rev(:, i0 + 1:i0 + ns), st%e_max_pos(i0 + 1:i0 + ns), &
+                          st%e_max_neg(i0 + 1:i0 + ns), psi, e_old, psi_old)
+    end associate
+    do k = 1, ns
+      dw(k) = hc(k)*(psi_old(k) + psi(k))*(e(k) - e_old(k))
+    end do
+    if (accept) then
+      do k = 1, ns
+        nl%work(i0 + k) = nl%work(i0 + k) + dw(k)
+      end do
+    end if
+    ! the work of each cell, summed in the order of its springs (with accept, the work moved
+    ! to this state), for the cells side by side
+    en(1:m) = 0.0_wp
+    if (accept) then
+      do j = 1, springs_per_cell
+        do c = 1, m
+          en(c) = en(c) + nl%work(i0 + springs_per_cell*(c - 1) + j)
+        end do
+      end do
+    else
+      do j = 1, springs_per_cell
+        do c = 1, m
+          k = springs_per_cell*(c - 1) + j
+          en(c) = en(c) + nl%work(i0 + k) + dw(k)
+        end do
+      end do
+    end if
     mc = 1
     do c = 1, m
       if (present(mat)) mc = mat(c)
-      e = spring_strains(ep(c, :), s(c, :))
-      en(c) = 0.0_wp
-      do j = 1, springs_per_cell
-        i = springs_per_cell*(c_first + c - 2) + j
-        kind = spring_kind(j)
-        associate(st => nl%state)
-          e_old = st%strain(i)
-          psi_old = st%stress(i)
-          fast = .true.
-          if (e(j) == e_old) then
-            psi(j) = psi_old
-          else if (st%count(i) == 0 .and. (st%dir(i) == 0 .or. &
-                   real(st%dir(i), wp)*(e(j) - e_old) > 0.0_wp)) then
-            ! fast path: a spring on its skeleton that keeps going the same way
-            er = merge(nl%er_pos(kind, mc), nl%er_neg(kind, mc), e(j) >= 0.0_wp)
-            psi(j) = e(j)/(1.0_wp + abs(e(j))/er)
-          else if (on_branch(st%count(i), st%dir(i), e(j), e_old, st%e_rev(:, i), &
-                             nl%er_pos(kind, mc), nl%er_neg(kind, mc))) then
-            ! fast path: a spring that keeps going the same way on its current Masing branch,
-            ! short of the point where that branch ends (as masing_trial would find)
-            associate(n => st%count(i))
-              x = 0.5_wp*(e(j) - st%e_rev(n, i))
-              psi(j) = st%s_rev(n, i) + 2.0_wp*(x/(1.0_wp + abs(x)/ &
-                       (0.5_wp*(nl%er_pos(kind, mc) + nl%er_neg(kind, mc)))))
-            end associate
-          else
-            fast = .false.
-          end if
-          if (accept) then
-            if (fast) then
-              ! no reversal and no branch ends: the commit moves along the same curve (what
-              ! masing_commit does in this case, bit for bit)
-              if (e(j) /= e_old) then
-                st%dir(i) = merge(1_ip, -1_ip, e(j) > e_old)
-                st%strain(i) = e(j)
-                st%stress(i) = psi(j)
-                st%e_max_pos(i) = max(st%e_max_pos(i), e(j))
-                st%e_max_neg(i) = min(st%e_max_neg(i), e(j))
-              end if
-            else
-              call masing_commit(e(j), 1.0_wp, nl%er_pos(kind, mc), nl%er_neg(kind, mc), &
-                                 st%strain(i), st%stress(i), st%dir(i), st%count(i), &
-                                 st%e_rev(:, i), st%s_rev(:, i), st%e_max_pos(i), &
-                                 st%e_max_neg(i))
-              ! the committed stress is bit for bit the trial stress at the same strain
-              psi(j) = st%stress(i)
-            end if
-          else if (.not. fast) then
-            call masing_trial(e(j), 1.0_wp, nl%er_pos(kind, mc), nl%er_neg(kind, mc), &
-                              st%strain(i), st%stress(i), st%dir(i), st%count(i), st%e_rev(:, i), &
-                              st%s_rev(:, i), psi(j), tan)
-          end if
-          dw = 0.5_wp*nl%c2(kind, mc)*(psi_old + psi(j))*(e(j) - e_old)
-          if (accept) then
-            nl%work(i) = nl%work(i) + dw
-            en(c) = en(c) + nl%work(i)
-          else
-            en(c) = en(c) + nl%work(i) + dw
-          end if
-        end associate
-      end do
-      g(c, :) = nl%c2(1, mc)*psi(1:4) + nl%c2(2, mc)*(psi(5:8) + cshift(psi(5:8), 1))
-      t(c, :) = nl%c2(3, mc)*psi(9:12)
+      k = springs_per_cell*(c - 1)
+      ! g_q = 2 ce psi_q + 2 ch (psi_Poisson(q) + psi_Poisson(q + 1))
+      g(c, 1) = nl%c2(1, mc)*psi(k + 1) + nl%c2(2, mc)*(psi(k + 5) + psi(k + 6))
+      g(c, 2) = nl%c2(1, mc)*psi(k + 2) + nl%c2(2, mc)*(psi(k + 6) + psi(k + 7))
+      g(c, 3) = nl%c2(1, mc)*psi(k + 3) + nl%c2(2, mc)*(psi(k + 7) + psi(k + 8))
+      g(c, 4) = nl%c2(1, mc)*psi(k + 4) + nl%c2(2, mc)*(psi(k + 8) + psi(k + 5))
+      t(c, 1) = nl%c2(3, mc)*psi(k + 9)
+      t(c, 2) = nl%c2(3, mc)*psi(k + 10)
+      t(c, 3) = nl%c2(3, mc)*psi(k + 11)
+      t(c, 4) = nl%c2(3, mc)*psi(k + 12)
     end do
   end subroutine nonlinear_law
-
-  !> Whether a spring with n > 0 reversal points, last moving in direction dir from its
-  !> committed strain e_c, reaches the trial strain e by going on along its current branch
-  !> (the one from reversal point n) without passing that branch's aim: the previous reversal
-  !> point, or for n = 1 the mirror of the first one (docs/nonlinear.md, section 4).
-  pure logical function on_branch(n, dir, e, e_c, e_rev, er_pos, er_neg)
-    integer(ip), intent(in) :: n, dir
-    real(wp), intent(in) :: e, e_c, e_rev(:), er_pos, er_neg
-    real(wp) :: aim
-    integer :: d
-    on_branch = .false.
-    if (n <= 0 .or. dir == 0) return
-    if (real(dir, wp)*(e - e_c) <= 0.0_wp) return
-    if (n >= 2) then
-      aim = e_rev(n - 1)
-      d = merge(1, -1, aim > e_rev(n))
-    else
-      aim = masing_mirror_strain(e_rev(1), er_pos, er_neg)
-      d = merge(-1, 1, e_rev(1) > 0.0_wp)
-    end if
-    on_branch = d == dir .and. real(d, wp)*(e - aim) < 0.0_wp
-  end function on_branch
 
   !> The elastic cell law on a chunk: generalised stresses g = dPi/d eps (edges) and
   !> t = dPi/d s (corners) from edge strains ep and corner shear measures s.
