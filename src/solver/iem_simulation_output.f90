@@ -268,15 +268,9 @@ contains
     stat = 0
     n = this%n_buf
     if (n == 0 .or. .not. this%output_open) return
-    if (this%static) then
-      call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
-        this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg, &
-        load_factor=this%h_load(1:n), iterations=this%h_iter(1:n), residual=this%h_res(1:n))
-    else
-      call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
-        this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg)
-    end if
-    if (stat == 0 .and. size(this%sp_probe) > 0) call this%out%write_spring_history(n, &
+    ! the other series first: the energies' write ends with the file's flush, so that a
+    ! checkpoint written next finds every series on disk as long as the energies
+    if (size(this%sp_probe) > 0) call this%out%write_spring_history(n, &
       this%h_sp_e(:, :, 1:n), this%h_sp_s(:, :, 1:n), stat, msg)
     if (stat == 0) then
       if (this%model%fracture) then
@@ -289,6 +283,16 @@ contains
         call this%events%clear()
       else
         call this%out%write_series(n, this%h_react(:, :, 1:n), stat, msg)
+      end if
+    end if
+    if (stat == 0) then
+      if (this%static) then
+        call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
+          this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg, &
+          load_factor=this%h_load(1:n), iterations=this%h_iter(1:n), residual=this%h_res(1:n))
+      else
+        call this%out%write_history(n, this%h_time(1:n), this%h_step(1:n), &
+          this%h_energy(:, 1:n), this%h_pu(:, :, 1:n), this%h_pv(:, :, 1:n), stat, msg)
       end if
     end if
     this%n_buf = 0

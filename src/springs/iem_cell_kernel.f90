@@ -134,8 +134,6 @@ contains
     integer :: bn(0:chunk), tn(0:chunk)
     real(wp) :: bw(0:chunk, 2), tw(0:chunk, 2)
     real(wp) :: bp(0:chunk, 2), tp(0:chunk, 2)
-    ! the chunk's edges, its cells' constants, corner forces, energies, powers, strains, and
-    ! those of the general path (fracture: only its damaged cells are taken)
     ! the node rows of the last chunks, for the chunk above each to reuse as its bottom row
     ! (slot j: its first node, its number of edges; two more rows for other chunks), and the
     ! vertical edges of the chunk
@@ -143,6 +141,8 @@ contains
     type(edge_row_t), pointer :: rp(:)
     type(edge_col_t) :: v
     integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, hit, j, ib, it, slots
+    ! the chunk's cells' law coefficients and damping stresses, corner forces, energies,
+    ! powers, strains, and those of the general path (fracture: only its damaged cells taken)
     real(wp) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk), ep(chunk, 4), s(chunk, 4)
     real(wp) :: gx(chunk, 4), gy(chunk, 4), gen(chunk), gpw(chunk)
