@@ -276,11 +276,13 @@ contains
     if (stat /= 0) return
     call parse_material(chunk, mat, stat, iomsg)
     call check_literals(text, g, keys, label, stat, msg)
-    if (stat == 0) call check_values(keys, 'e nu density', label, stat, msg)
+    ! (history_depth within its range even where no spring reads it: an out-of-range value is
+    ! a mistake either way)
+    if (stat == 0) call check_values(keys, 'e nu density history_depth', label, stat, msg)
     if (stat /= 0) return
     if (mat%nonlinear) then
-      call check_values(keys, 'tensile_strength compressive_strength shear_strength '// &
-                        'history_depth', label, stat, msg)
+      call check_values(keys, 'tensile_strength compressive_strength shear_strength', label, &
+                        stat, msg)
     ! strengths without nonlinear = .true. or fracture = .true. would be silently ignored
     else if (mat%fracture) then
       continue

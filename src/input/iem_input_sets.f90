@@ -29,7 +29,7 @@ contains
     name = ''; where = ''; box = unset_real; point = unset_real; kind = 'fix'; dofs = 'xy'
     segment = unset_real; center = unset_real; radius = unset_real; shape = ''
     normal = unset_real
-    velocity = 0.0_wp; time_function = 'constant'; t_start = 0.0_wp; t_ramp = 0.0_wp
+    velocity = unset_real; time_function = 'constant'; t_start = 0.0_wp; t_ramp = 0.0_wp
     t_release = huge(1.0_wp)
     iomsg = ''
     read(chunk, nml=bc, iostat=ios, iomsg=iomsg)
@@ -64,7 +64,15 @@ contains
     if (stat /= 0) return
     call parse_bc(chunk, b, stat, iomsg)
     call check_applies(text, g, label, b%set%where, b%tf%kind, stat, msg)
-    if (stat == 0) call check_literals(text, g, keys, label, stat, msg)
+    if (stat /= 0) return
+    ! velocity: two values, or none (0, 0)
+    if (count(b%velocity == unset_real) == 1) then
+      call bad(label, 'velocity', rtoa(merge(b%velocity(1), b%velocity(2), &
+               b%velocity(1) /= unset_real)), 'needs two values (vx, vy) [m/s]', stat, msg)
+      return
+    end if
+    if (all(b%velocity == unset_real)) b%velocity = 0.0_wp
+    call check_literals(text, g, keys, label, stat, msg)
     if (stat /= 0) return
     if (len_trim(b%name) == 0) b%name = 'bc'//itoa(ib)
     call check_set(b%set, label, .false., stat, msg)
