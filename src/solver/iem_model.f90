@@ -74,8 +74,8 @@ module iem_model
     type(cell_split_t) :: split
     !> The force kernel's work space (its node rows, about 200 kB).
     type(edge_row_t), allocatable :: rows(:)
-    !> Cell forces of the loaded nodes and of the prescribed dofs, for the reactions.
-    real(wp), allocatable :: f_ext_nodes(:, :), f_bc(:)
+    !> Cell forces of the prescribed dofs, for the reactions.
+    real(wp), allocatable :: f_bc(:)
     !> External forces, stored only for the owned nodes that carry a load: ext_node(s) is
     !> the node of slot s (ascending), fext(:, s) its summed load; load_slot(n) is the slot of
     !> load entry n, bc_slot(q) that of prescribed dof q (0: the node carries no load).
@@ -355,7 +355,7 @@ contains
     this%plan = cell_chunks(lat%cell_nodes)
     call this%split%init(lat%cell_nodes, lat%n_owned, lat%n_local)
     this%rows = kernel_rows()
-    allocate(this%f_ext_nodes(2, size(this%ext_node)), this%f_bc(size(this%bc_node)))
+    allocate(this%f_bc(size(this%bc_node)))
     ! the damping powers only with that damping
     nd = 0
     if (this%beta > 0.0_wp) nd = lat%n_cells

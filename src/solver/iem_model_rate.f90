@@ -71,11 +71,8 @@ contains
         this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
       end do
     end if
-    ! the cell forces of the loaded nodes and of the prescribed dofs, for the reactions; the
-    ! halo nodes' forces are not used
-    do s = 1, size(this%ext_node)
-      this%f_ext_nodes(:, s) = this%f(:, this%ext_node(s))
-    end do
+    ! the cell forces of the prescribed dofs, for the reactions; the halo nodes' forces are
+    ! not used
     do n = 1, size(this%bc_node)
       this%f_bc(n) = this%f(this%bc_comp(n), this%bc_node(n))
     end do

@@ -140,7 +140,7 @@ contains
     type(edge_row_t), allocatable, target :: own_rows(:)
     type(edge_row_t), pointer :: rp(:)
     type(edge_col_t) :: v
-    integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, hit, j, ib, it, slots
+    integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, hit, j, ib, it
     ! the chunk's cells' law coefficients and damping stresses, corner forces, energies,
     ! powers, strains, and those of the general path (fracture: only its damaged cells taken)
     real(wp) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
@@ -183,11 +183,10 @@ contains
     energy = 0.0_wp
     damp_power = 0.0_wp
     if (.not. present(plan)) own_plan = cell_chunks(cell_nodes)
-    slots = kernel_slots
     if (present(rows)) then
       rp => rows
     else
-      allocate(own_rows(slots + 2))
+      allocate(own_rows(kernel_slots + 2))
       rp => own_rows
     end if
     slot_node = -1
@@ -197,22 +196,22 @@ contains
       call chunk_of(ic, c0, m, consec, b0, t0)
       ! the chunk's bottom and top rows: a consecutive chunk's top row goes to the next slot,
       ! its bottom row is the slot of the chunk below when that chunk's top row is this row
-      ib = slots + 1
-      it = slots + 2
+      ib = kernel_slots + 1
+      it = kernel_slots + 2
       hit = 0
       if (consec) then
-        do j = 1, slots
+        do j = 1, kernel_slots
           if (slot_node(j) == b0 .and. slot_m(j) == m) then
             hit = j
             exit
           end if
         end do
         if (hit > 0) ib = hit
-        if (next_slot == hit) next_slot = mod(next_slot, slots) + 1
+        if (next_slot == hit) next_slot = mod(next_slot, kernel_slots) + 1
         it = next_slot
         slot_node(it) = t0
         slot_m(it) = m
-        next_slot = mod(next_slot, slots) + 1
+        next_slot = mod(next_slot, kernel_slots) + 1
         if (hit == 0) call gather_row(y, 1, m, b0, rp(ib)%u)
         call gather_row(y, 1, m, t0, rp(it)%u)
         if (damped) call gather_block(y, row, m, b0, t0, bw, tw)
