@@ -42,6 +42,9 @@ module iem_fracture
     real(wp), allocatable :: e_prev(:, :)
     !> Whether the cell's damage has begun (derived from kappa: see refresh).
     logical, allocatable :: hit(:)
+    !> Whether some cell of the rank may have been hit (.false.: none has; the kernel then
+    !> skips its test of hit): set with every hit(c) = .true., and by refresh.
+    logical :: any_hit = .false.
   contains
     procedure :: init => fracture_init
     procedure :: precut => fracture_precut
@@ -73,6 +76,7 @@ contains
     this%diss = 0.0_wp
     this%e_prev = 0.0_wp
     this%hit = .false.
+    this%any_hit = .false.
   end subroutine fracture_init
 
   !> Fail every edge (and so every spring) of the cells whose centre one of the shapes holds
@@ -88,6 +92,7 @@ contains
           this%kappa(1:4, c) = precut_kappa
           this%t_fail(1:4, c) = 0.0_wp
           this%hit(c) = .true.
+          this%any_hit = .true.
           exit
         end if
       end do
@@ -112,12 +117,14 @@ contains
                       any(this%kappa(9:12, c) > lw%onset(crit_shear))
       end associate
     end do
+    this%any_hit = any(this%hit)
   end subroutine fracture_refresh
 
   !> Release the state.
   subroutine fracture_free(this)
     class(fracture_t), intent(inout) :: this
     this%active = .false.
+    this%any_hit = .false.
     if (allocated(this%laws)) deallocate(this%laws)
     if (allocated(this%kappa)) deallocate(this%kappa)
     if (allocated(this%t_fail)) deallocate(this%t_fail)

@@ -11,7 +11,7 @@ module iem_fracture_kernel
   use iem_fracture_law, only: fracture_law_t, crit_tension, crit_crushing, crit_shear, no_onset
   implicit none
   private
-  public :: fracture_chunk, damaged_cell, chunk_intact
+  public :: fracture_chunk, damaged_cell, chunk_intact, chunk_unhit
 
 contains
 
@@ -81,6 +81,7 @@ contains
         fr%e_prev(5:8, cell) = s(c, :)
         fr%kappa(:, cell) = knew
         fr%hit(cell) = .true.
+        fr%any_hit = .true.
         do q = 1, 4
           if (fe(c, q) == 0.0_wp .and. fr%t_fail(q, cell) == intact_time) &
             fr%t_fail(q, cell) = time
@@ -100,12 +101,11 @@ contains
     real(wp), intent(in) :: ep(:, :), s(:, :)
     integer :: c, q, n
     real(wp) :: on_t, on_c, on_s
-    ! counts of comparisons (which vectorise, unlike a floating-point maximum): hit cells,
-    ! then strains past the smallest onset of each criterion some material has
+    ! counts of comparisons (which vectorise, unlike a floating-point maximum): strains past
+    ! the smallest onset of each criterion some material has
+    intact = chunk_unhit(fr, c_first, m)
+    if (.not. intact) return
     n = 0
-    do c = c_first, c_first + m - 1
-      n = n + merge(1, 0, fr%hit(c))
-    end do
     on_t = fr%onset_min(crit_tension)
     on_c = fr%onset_min(crit_crushing)
     on_s = fr%onset_min(crit_shear)
@@ -132,6 +132,20 @@ contains
     end if
     intact = n == 0
   end function chunk_intact
+
+  !> True when the damage of none of the m cells from c_first on has begun.
+  pure logical function chunk_unhit(fr, c_first, m) result(unhit)
+    type(fracture_t), intent(in) :: fr
+    integer, intent(in) :: c_first, m
+    integer :: c, n
+    unhit = .true.
+    if (.not. fr%any_hit) return
+    n = 0
+    do c = c_first, c_first + m - 1
+      n = n + merge(1, 0, fr%hit(c))
+    end do
+    unhit = n == 0
+  end function chunk_unhit
 
   !> Add to diss the energy a cell of constants k and law lw releases by damage between its
   !> committed state (strain history kap, strains e_old = (ep, s) of its last accepted state

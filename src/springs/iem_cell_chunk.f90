@@ -4,7 +4,7 @@
 !> registers; and the general path, with the intermediates in arrays, for the nonlinear
 !> springs and the cells that fracture has reached.
 module iem_cell_chunk
-  use iem_kinds, only: wp
+  use iem_kinds, only: wp, i8
   use iem_spring_constants, only: cell_constants_t, law_bending
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk, cell_law, cell_law_mixed, nonlinear_law
@@ -12,8 +12,8 @@ module iem_cell_chunk
   use iem_fracture_kernel, only: fracture_chunk, damaged_cell
   implicit none
   private
-  public :: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, chunk_general, law_coefficients, &
-            damping_stresses
+  public :: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, chunk_elastic_forces, &
+            chunk_elastic_lean, chunk_general, law_coefficients, damping_stresses
 
   !> A node row of a chunk and its horizontal edges: the displacements u(0:m, 2) of its nodes
   !> 0..m and, for edges 1..m (from node c-1 to node c), the unit vector (x, y), inverse
@@ -106,42 +106,14 @@ contains
     real(wp), intent(out) :: ep(chunk, 4), s(chunk, 4)
     real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
     real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
+    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4
     real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4
     integer :: c
 
     ilx = k%il0(1)
     ily = k%il0(2)
     do c = 1, m
-      ! the cell's edges: bottom, right, reversed top, reversed left
-      e1x = bot%x(c)
-      e1y = bot%y(c)
-      e2x = v%x(c)
-      e2y = v%y(c)
-      e3x = -top%x(c)
-      e3y = -top%y(c)
-      e4x = -v%x(c - 1)
-      e4y = -v%y(c - 1)
-      i1 = bot%li(c)
-      i2 = v%li(c)
-      i3 = top%li(c)
-      i4 = v%li(c - 1)
-      p1 = bot%st(c)
-      p2 = v%st(c)
-      p3 = top%st(c)
-      p4 = v%st(c - 1)
-      ! shear measures s = sin(gamma) at corners 1..4 (corner q joins edges q and q-1)
-      s1 = -(e1x*e4x + e1y*e4y)
-      s2 = -(e2x*e1x + e2y*e1y)
-      s3 = -(e3x*e2x + e3y*e2y)
-      s4 = -(e4x*e3x + e4y*e3y)
-      g1 = lc(c, 1)*p1 + lc(c, 2)*(p4 + p2) + lc(c, 3)*p3
-      g2 = lc(c, 1)*p2 + lc(c, 2)*(p1 + p3) + lc(c, 3)*p4
-      g3 = lc(c, 1)*p3 + lc(c, 2)*(p2 + p4) + lc(c, 3)*p1
-      g4 = lc(c, 1)*p4 + lc(c, 2)*(p3 + p1) + lc(c, 3)*p2
-      t1 = lc(c, 4)*s1 + lc(c, 5)*(s3 - s4 - s2)
-      t2 = lc(c, 4)*s2 + lc(c, 5)*(s4 - s1 - s3)
-      t3 = lc(c, 4)*s3 + lc(c, 5)*(s1 - s2 - s4)
-      t4 = lc(c, 4)*s4 + lc(c, 5)*(s2 - s3 - s1)
+      include 'iem_cell_elastic_strains.inc'
       en(c) = 0.5_wp*(g1*p1 + g2*p2 + g3*p3 + g4*p4 + t1*s1 + t2*s2 + t3*s3 + t4*s4)
       ep(c, 1) = p1
       ep(c, 2) = p2
@@ -151,41 +123,64 @@ contains
       s(c, 2) = s2
       s(c, 3) = s3
       s(c, 4) = s4
-      ! with the damping stresses; g per unit reference length
-      g1 = (g1 + hd(c, 1))*ilx
-      g2 = (g2 + hd(c, 2))*ily
-      g3 = (g3 + hd(c, 3))*ilx
-      g4 = (g4 + hd(c, 4))*ily
-      t1 = t1 + ud(c, 1)
-      t2 = t2 + ud(c, 2)
-      t3 = t3 + ud(c, 3)
-      t4 = t4 + ud(c, 4)
-      ! the energy's gradient with respect to edge vector q (s_q and s_(q+1) depend on it):
-      ! q_q = (g_q - (t_q s_q + t_(q+1) s_(q+1))/l_q) e_q - (t_q e_(q-1) + t_(q+1) e_(q+1))/l_q;
-      ! edge q pulls its start corner q by +q_q and its end corner q+1 by -q_q
-      c1 = g1 - i1*(t1*s1 + t2*s2)
-      c2 = g2 - i2*(t2*s2 + t3*s3)
-      c3 = g3 - i3*(t3*s3 + t4*s4)
-      c4 = g4 - i4*(t4*s4 + t1*s1)
-      q1x = c1*e1x - i1*(t1*e4x + t2*e2x)
-      q1y = c1*e1y - i1*(t1*e4y + t2*e2y)
-      q2x = c2*e2x - i2*(t2*e1x + t3*e3x)
-      q2y = c2*e2y - i2*(t2*e1y + t3*e3y)
-      q3x = c3*e3x - i3*(t3*e2x + t4*e4x)
-      q3y = c3*e3y - i3*(t3*e2y + t4*e4y)
-      q4x = c4*e4x - i4*(t4*e3x + t1*e1x)
-      q4y = c4*e4y - i4*(t4*e3y + t1*e1y)
-      ! corner q is the start of edge q and the end of edge q-1: its force is dPi/dx_q
-      fx(c, 1) = q4x - q1x
-      fy(c, 1) = q4y - q1y
-      fx(c, 2) = q1x - q2x
-      fy(c, 2) = q1y - q2y
-      fx(c, 3) = q2x - q3x
-      fy(c, 3) = q2y - q3y
-      fx(c, 4) = q3x - q4x
-      fy(c, 4) = q3y - q4y
+      include 'iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic
+
+  !> chunk_elastic's corner forces fx, fy alone (no energies, strains or shear measures kept).
+  pure subroutine chunk_elastic_forces(k, m, bot, top, v, lc, hd, ud, fx, fy)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
+    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
+    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
+    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4
+    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4
+    integer :: c
+
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    do c = 1, m
+      include 'iem_cell_elastic_strains.inc'
+      include 'iem_cell_elastic_forces.inc'
+    end do
+  end subroutine chunk_elastic_forces
+
+  !> chunk_elastic_forces with n_past, not 0 when a cell has a strain past the onsets on(3)
+  !> (tension: eps > on(1); crushing: -eps > on(2); shear: |s| > on(3)): for fracture's test
+  !> of an intact chunk (it counts, per cell, the criteria passed).
+  pure subroutine chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, on, fx, fy, n_past)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4), on(3)
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
+    integer(i8), intent(out) :: n_past
+    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
+    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
+    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4
+    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4, on_t, on_c, on_s
+    integer :: c
+
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    on_t = on(1)
+    on_c = on(2)
+    on_s = on(3)
+    n_past = 0
+    do c = 1, m
+      include 'iem_cell_elastic_strains.inc'
+      ! counts of comparisons vectorise (a floating-point maximum over the cells does not)
+      n_past = n_past + merge(1_i8, 0_i8, max(p1, p2, p3, p4) > on_t) + &
+               merge(1_i8, 0_i8, -min(p1, p2, p3, p4) > on_c) + &
+               merge(1_i8, 0_i8, max(abs(s1), abs(s2), abs(s3), abs(s4)) > on_s)
+      include 'iem_cell_elastic_forces.inc'
+    end do
+  end subroutine chunk_elastic_lean
 
   !> The stiffness damping of a chunk's elastic cells (law coefficients lc): beta times the
   !> cell law of the strain and shear rates of the velocities bw, tw as edge stresses hd and

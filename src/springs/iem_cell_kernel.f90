@@ -9,14 +9,16 @@
 !> The cell law maps (eps, s) linearly to generalised stresses (g, t) = dPi/d(eps, s): the
 !> paper's springs or the bending-corrected cell (iem_spring_constants).
 module iem_cell_kernel
-  use iem_kinds, only: wp
+  use iem_kinds, only: wp, i8
   use iem_spring_constants, only: cell_constants_t
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk
-  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, chunk_general, &
+  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, &
+                            chunk_elastic_forces, chunk_elastic_lean, chunk_general, &
                             law_coefficients, damping_stresses
   use iem_fracture, only: fracture_t
-  use iem_fracture_kernel, only: chunk_intact
+  use iem_fracture_kernel, only: chunk_intact, chunk_unhit
+  use iem_prefetch, only: prefetch
   implicit none
   private
   public :: cell_energy, cell_force, cell_forces, cell_strain_measures, cell_chunks
@@ -149,6 +151,9 @@ contains
     logical :: dmg(chunk), counted(chunk)
     integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
+    logical :: lean, intact
+    real(wp) :: onset(3), lc1(5)
+    integer(i8) :: n_past
 
     nc = size(cell_nodes, 2)
     keep_energy = .false.
@@ -166,8 +171,9 @@ contains
     tw = 0.0_wp
     bp = 0.0_wp
     tp = 0.0_wp
-    do i = 1, chunk
-      lc(i, :) = law_coefficients(k)
+    lc1 = law_coefficients(k)
+    do i = 1, 5
+      lc(:, i) = lc1(i)
     end do
     ! without damping these stay 0
     hd = 0.0_wp
@@ -175,6 +181,10 @@ contains
     pw = 0.0_wp
     ! the energy summed over the counted cells: only when the cells' energies are not asked for
     sums = .not. present(cell_energy)
+    ! the elastic cells' energies, strains and shear measures are stored only when asked for
+    lean = .not. (sums .or. keep_energy)
+    onset = huge(1.0_wp)
+    if (present(fr)) onset = fr%onset_min
     if (present(add)) then
       if (.not. add) f = 0.0_wp
     else
@@ -194,6 +204,8 @@ contains
     next_slot = 1
     do ic = 1, n_chunks()
       call chunk_of(ic, c0, m, consec, b0, t0)
+      ! the next chunk's top node row (values and forces) into the caches meanwhile
+      if (ic < n_chunks()) call prefetch_chunk(ic + 1)
       ! the chunk's bottom and top rows: a consecutive chunk's top row goes to the next slot,
       ! its bottom row is the slot of the chunk below when that chunk's top row is this row
       ib = kernel_slots + 1
@@ -250,10 +262,22 @@ contains
         else if (damped) then
           call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bw, tw, hd, ud, pw)
         end if
-        call chunk_elastic(k, m, bot, top, v, lc, hd, ud, fx, fy, en, ep, s)
+        if (lean .and. .not. present(fr)) then
+          call chunk_elastic_forces(k, m, bot, top, v, lc, hd, ud, fx, fy)
+          intact = .true.
+        else if (lean) then
+          ! without energies: the onset test counted in the same loop
+          call chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, onset, fx, fy, n_past)
+          intact = n_past == 0
+          if (intact) intact = chunk_unhit(fr, c0, m)
+        else
+          call chunk_elastic(k, m, bot, top, v, lc, hd, ud, fx, fy, en, ep, s)
+          intact = .true.
+          if (present(fr)) intact = chunk_intact(fr, c0, m, ep, s)
+        end if
         if (present(fr)) then
           ! cells that fracture has reached take the general path's damaged law
-          if (.not. chunk_intact(fr, c0, m, ep, s)) then
+          if (.not. intact) then
             if (by_material) then
               call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, gx, &
                                  gy, &
@@ -317,6 +341,17 @@ contains
         n_chunks = size(own_plan, 2)
       end if
     end function n_chunks
+
+    !> Ask for chunk j's top node row of y and of f (when numbered consecutively).
+    pure subroutine prefetch_chunk(j)
+      integer, intent(in) :: j
+      integer :: c1, m1, b1, t1
+      logical :: cons1
+      call chunk_of(j, c1, m1, cons1, b1, t1)
+      if (.not. cons1) return
+      call prefetch(y(:, t1:t1 + m1), size(y, 1)*(m1 + 1), 0)
+      call prefetch(f(:, t1:t1 + m1), 2*(m1 + 1), 1)
+    end subroutine prefetch_chunk
 
     !> Whether chunk j's corner forces are routed.
     pure logical function routed(j)
