@@ -142,7 +142,7 @@ contains
     type(edge_row_t), allocatable, target :: own_rows(:)
     type(edge_row_t), pointer :: rp(:)
     type(edge_col_t) :: v
-    integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, hit, j, ib, it
+    integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, spare, hit, j, ib, it
     ! the chunk's cells' law coefficients and damping stresses, corner forces, energies,
     ! powers, strains, and those of the general path (fracture: only its damaged cells taken)
     real(wp) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
@@ -202,6 +202,7 @@ contains
     slot_node = -1
     slot_m = 0
     next_slot = 1
+    spare = 0
     do ic = 1, n_chunks()
       call chunk_of(ic, c0, m, consec, b0, t0)
       ! the next chunk's top node row (values and forces) into the caches meanwhile
@@ -218,12 +219,24 @@ contains
             exit
           end if
         end do
-        if (hit > 0) ib = hit
-        if (next_slot == hit) next_slot = mod(next_slot, kernel_slots) + 1
-        it = next_slot
+        if (spare > 0) then
+          ! the slot the chunk before read its bottom row from: the few slots in use stay in
+          ! the core's nearest cache
+          it = spare
+          spare = 0
+        else
+          if (next_slot == hit) next_slot = mod(next_slot, kernel_slots) + 1
+          it = next_slot
+          next_slot = mod(next_slot, kernel_slots) + 1
+        end if
         slot_node(it) = t0
         slot_m(it) = m
-        next_slot = mod(next_slot, kernel_slots) + 1
+        if (hit > 0) then
+          ! the bottom row is read by this chunk only: its slot is free after it
+          ib = hit
+          slot_node(hit) = -1
+          spare = hit
+        end if
         if (hit == 0) call gather_row(y, 1, m, b0, rp(ib)%u)
         call gather_row(y, 1, m, t0, rp(it)%u)
         if (damped) call gather_block(y, row, m, b0, t0, bw, tw)
