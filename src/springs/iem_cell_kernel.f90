@@ -14,8 +14,8 @@ module iem_cell_kernel
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk
   use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, &
-                            chunk_elastic_forces, chunk_elastic_lean, chunk_general, &
-                            law_coefficients, damping_stresses
+                            chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_lean, &
+                            chunk_general, law_coefficients, damping_stresses
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
   use iem_prefetch, only: prefetch
@@ -275,7 +275,10 @@ contains
         else if (damped) then
           call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bw, tw, hd, ud, pw)
         end if
-        if (lean .and. .not. present(fr)) then
+        if (lean .and. .not. (present(fr) .or. damped .or. by_material)) then
+          call chunk_elastic_plain(k, m, bot, top, v, lc1, fx, fy)
+          intact = .true.
+        else if (lean .and. .not. present(fr)) then
           call chunk_elastic_forces(k, m, bot, top, v, lc, hd, ud, fx, fy)
           intact = .true.
         else if (lean) then
