@@ -13,8 +13,8 @@ module iem_cell_chunk
   implicit none
   private
   public :: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, chunk_elastic_forces, &
-            chunk_elastic_plain, chunk_elastic_lean, chunk_general, law_coefficients, &
-            damping_stresses
+            chunk_elastic_plain, chunk_elastic_plain_energy, chunk_elastic_lean, chunk_general, &
+            law_coefficients, damping_stresses
 
   !> A node row of a chunk and its horizontal edges: the displacements u(0:m, 2) of its nodes
   !> 0..m and, for edges 1..m (from node c-1 to node c), the unit vector (x, y), inverse
@@ -212,6 +212,52 @@ contains
       include 'iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic_plain
+
+  !> chunk_elastic for cells of one law (coefficients lc1) without damping: the corner forces,
+  !> each cell's strain energy en, edge strains ep and shear measures s.
+  pure subroutine chunk_elastic_plain_energy(k, m, bot, top, v, lc1, fx, fy, en, ep, s)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    real(wp), intent(in) :: lc1(5)
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk)
+    real(wp), intent(out) :: ep(chunk, 4), s(chunk, 4)
+    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
+    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
+    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4, l1, l2, l3, l4, l5
+    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4
+    integer :: c
+
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    l1 = lc1(1)
+    l2 = lc1(2)
+    l3 = lc1(3)
+    l4 = lc1(4)
+    l5 = lc1(5)
+    do c = 1, m
+      include 'iem_cell_elastic_strains.inc'
+      en(c) = 0.5_wp*(g1*p1 + g2*p2 + g3*p3 + g4*p4 + t1*s1 + t2*s2 + t3*s3 + t4*s4)
+      ep(c, 1) = p1
+      ep(c, 2) = p2
+      ep(c, 3) = p3
+      ep(c, 4) = p4
+      s(c, 1) = s1
+      s(c, 2) = s2
+      s(c, 3) = s3
+      s(c, 4) = s4
+      a1 = g1*ilx
+      a2 = g2*ily
+      a3 = g3*ilx
+      a4 = g4*ily
+      b1 = t1
+      b2 = t2
+      b3 = t3
+      b4 = t4
+      include 'iem_cell_elastic_forces.inc'
+    end do
+  end subroutine chunk_elastic_plain_energy
 
   !> chunk_elastic_forces with n_past, not 0 when a cell has a strain past the onsets on(3)
   !> (tension: eps > on(1); crushing: -eps > on(2); shear: |s| > on(3)): for fracture's test

@@ -14,8 +14,9 @@ module iem_cell_kernel
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk
   use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, &
-                            chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_lean, &
-                            chunk_general, law_coefficients, damping_stresses
+                            chunk_elastic_forces, chunk_elastic_plain, &
+                            chunk_elastic_plain_energy, chunk_elastic_lean, chunk_general, &
+                            law_coefficients, damping_stresses
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
   use iem_prefetch, only: prefetch
@@ -287,7 +288,11 @@ contains
           intact = n_past == 0
           if (intact) intact = chunk_unhit(fr, c0, m)
         else
-          call chunk_elastic(k, m, bot, top, v, lc, hd, ud, fx, fy, en, ep, s)
+          if (damped .or. by_material) then
+            call chunk_elastic(k, m, bot, top, v, lc, hd, ud, fx, fy, en, ep, s)
+          else
+            call chunk_elastic_plain_energy(k, m, bot, top, v, lc1, fx, fy, en, ep, s)
+          end if
           intact = .true.
           if (present(fr)) intact = chunk_intact(fr, c0, m, ep, s)
         end if
