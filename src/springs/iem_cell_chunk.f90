@@ -13,8 +13,8 @@ module iem_cell_chunk
   implicit none
   private
   public :: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, chunk_elastic_forces, &
-            chunk_elastic_plain, chunk_elastic_plain_energy, chunk_elastic_lean, chunk_general, &
-            law_coefficients, damping_stresses
+            chunk_elastic_plain, chunk_elastic_plain_energy, chunk_elastic_plain_lean, &
+            chunk_elastic_lean, chunk_general, law_coefficients, damping_stresses
 
   !> A node row of a chunk and its horizontal edges: the displacements u(0:m, 2) of its nodes
   !> 0..m and, for edges 1..m (from node c-1 to node c), the unit vector (x, y), inverse
@@ -259,6 +259,47 @@ contains
     end do
   end subroutine chunk_elastic_plain_energy
 
+  !> chunk_elastic_lean for cells of one law (coefficients lc1) without damping.
+  pure subroutine chunk_elastic_plain_lean(k, m, bot, top, v, lc1, on, fx, fy, n_past)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    real(wp), intent(in) :: lc1(5), on(3)
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
+    integer(i8), intent(out) :: n_past
+    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
+    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
+    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4, l1, l2, l3, l4, l5
+    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4, on_t, on_c, on_s
+    integer :: c
+
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    l1 = lc1(1)
+    l2 = lc1(2)
+    l3 = lc1(3)
+    l4 = lc1(4)
+    l5 = lc1(5)
+    on_t = on(1)
+    on_c = on(2)
+    on_s = on(3)
+    n_past = 0
+    do c = 1, m
+      include 'iem_cell_elastic_strains.inc'
+      include 'iem_cell_elastic_onsets.inc'
+      a1 = g1*ilx
+      a2 = g2*ily
+      a3 = g3*ilx
+      a4 = g4*ily
+      b1 = t1
+      b2 = t2
+      b3 = t3
+      b4 = t4
+      include 'iem_cell_elastic_forces.inc'
+    end do
+  end subroutine chunk_elastic_plain_lean
+
   !> chunk_elastic_forces with n_past, not 0 when a cell has a strain past the onsets on(3)
   !> (tension: eps > on(1); crushing: -eps > on(2); shear: |s| > on(3)): for fracture's test
   !> of an intact chunk (it counts, per cell, the criteria passed).
@@ -289,10 +330,7 @@ contains
       l4 = lc(c, 4)
       l5 = lc(c, 5)
       include 'iem_cell_elastic_strains.inc'
-      ! counts of comparisons vectorise (a floating-point maximum over the cells does not)
-      n_past = n_past + merge(1_i8, 0_i8, max(p1, p2, p3, p4) > on_t) + &
-               merge(1_i8, 0_i8, -min(p1, p2, p3, p4) > on_c) + &
-               merge(1_i8, 0_i8, max(abs(s1), abs(s2), abs(s3), abs(s4)) > on_s)
+      include 'iem_cell_elastic_onsets.inc'
       ! a, b: g, t with the damping stresses; a per unit reference length
       a1 = (g1 + hd(c, 1))*ilx
       a2 = (g2 + hd(c, 2))*ily

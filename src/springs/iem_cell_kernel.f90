@@ -15,8 +15,8 @@ module iem_cell_kernel
   use iem_cell_laws, only: chunk
   use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, &
                             chunk_elastic_forces, chunk_elastic_plain, &
-                            chunk_elastic_plain_energy, chunk_elastic_lean, chunk_general, &
-                            law_coefficients, damping_stresses
+                            chunk_elastic_plain_energy, chunk_elastic_plain_lean, &
+                            chunk_elastic_lean, chunk_general, law_coefficients, damping_stresses
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
   use iem_prefetch, only: prefetch
@@ -284,7 +284,11 @@ contains
           intact = .true.
         else if (lean) then
           ! without energies: the onset test counted in the same loop
-          call chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, onset, fx, fy, n_past)
+          if (damped .or. by_material) then
+            call chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, onset, fx, fy, n_past)
+          else
+            call chunk_elastic_plain_lean(k, m, bot, top, v, lc1, onset, fx, fy, n_past)
+          end if
           intact = n_past == 0
           if (intact) intact = chunk_unhit(fr, c0, m)
         else
