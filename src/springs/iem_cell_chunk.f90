@@ -105,40 +105,16 @@ contains
     real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk)
     real(wp), intent(out) :: ep(chunk, 4), s(chunk, 4)
-    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
-    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
-    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4, l1, l2, l3, l4, l5
-    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4
-    integer :: c
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
 
     ilx = k%il0(1)
     ily = k%il0(2)
     do c = 1, m
-      l1 = lc(c, 1)
-      l2 = lc(c, 2)
-      l3 = lc(c, 3)
-      l4 = lc(c, 4)
-      l5 = lc(c, 5)
-      include 'iem_cell_elastic_strains.inc'
-      en(c) = 0.5_wp*(g1*p1 + g2*p2 + g3*p3 + g4*p4 + t1*s1 + t2*s2 + t3*s3 + t4*s4)
-      ep(c, 1) = p1
-      ep(c, 2) = p2
-      ep(c, 3) = p3
-      ep(c, 4) = p4
-      s(c, 1) = s1
-      s(c, 2) = s2
-      s(c, 3) = s3
-      s(c, 4) = s4
-      ! a, b: g, t with the damping stresses; a per unit reference length
-      a1 = (g1 + hd(c, 1))*ilx
-      a2 = (g2 + hd(c, 2))*ily
-      a3 = (g3 + hd(c, 3))*ilx
-      a4 = (g4 + hd(c, 4))*ily
-      b1 = t1 + ud(c, 1)
-      b2 = t2 + ud(c, 2)
-      b3 = t3 + ud(c, 3)
-      b4 = t4 + ud(c, 4)
-      include 'iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_cell_law.inc'
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_energy.inc'
+      include 'elastic_loop/iem_cell_elastic_damped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic
 
@@ -150,31 +126,15 @@ contains
     type(edge_col_t), intent(in) :: v
     real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
-    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
-    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
-    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4, l1, l2, l3, l4, l5
-    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4
-    integer :: c
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
 
     ilx = k%il0(1)
     ily = k%il0(2)
     do c = 1, m
-      l1 = lc(c, 1)
-      l2 = lc(c, 2)
-      l3 = lc(c, 3)
-      l4 = lc(c, 4)
-      l5 = lc(c, 5)
-      include 'iem_cell_elastic_strains.inc'
-      ! a, b: g, t with the damping stresses; a per unit reference length
-      a1 = (g1 + hd(c, 1))*ilx
-      a2 = (g2 + hd(c, 2))*ily
-      a3 = (g3 + hd(c, 3))*ilx
-      a4 = (g4 + hd(c, 4))*ily
-      b1 = t1 + ud(c, 1)
-      b2 = t2 + ud(c, 2)
-      b3 = t3 + ud(c, 3)
-      b4 = t4 + ud(c, 4)
-      include 'iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_cell_law.inc'
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_damped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic_forces
 
@@ -186,30 +146,13 @@ contains
     type(edge_col_t), intent(in) :: v
     real(wp), intent(in) :: lc1(5)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
-    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
-    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
-    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4, l1, l2, l3, l4, l5
-    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4
-    integer :: c
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
 
-    ilx = k%il0(1)
-    ily = k%il0(2)
-    l1 = lc1(1)
-    l2 = lc1(2)
-    l3 = lc1(3)
-    l4 = lc1(4)
-    l5 = lc1(5)
+    include 'elastic_loop/iem_cell_elastic_one_law.inc'
     do c = 1, m
-      include 'iem_cell_elastic_strains.inc'
-      a1 = g1*ilx
-      a2 = g2*ily
-      a3 = g3*ilx
-      a4 = g4*ily
-      b1 = t1
-      b2 = t2
-      b3 = t3
-      b4 = t4
-      include 'iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_undamped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic_plain
 
@@ -223,39 +166,14 @@ contains
     real(wp), intent(in) :: lc1(5)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk)
     real(wp), intent(out) :: ep(chunk, 4), s(chunk, 4)
-    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
-    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
-    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4, l1, l2, l3, l4, l5
-    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4
-    integer :: c
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
 
-    ilx = k%il0(1)
-    ily = k%il0(2)
-    l1 = lc1(1)
-    l2 = lc1(2)
-    l3 = lc1(3)
-    l4 = lc1(4)
-    l5 = lc1(5)
+    include 'elastic_loop/iem_cell_elastic_one_law.inc'
     do c = 1, m
-      include 'iem_cell_elastic_strains.inc'
-      en(c) = 0.5_wp*(g1*p1 + g2*p2 + g3*p3 + g4*p4 + t1*s1 + t2*s2 + t3*s3 + t4*s4)
-      ep(c, 1) = p1
-      ep(c, 2) = p2
-      ep(c, 3) = p3
-      ep(c, 4) = p4
-      s(c, 1) = s1
-      s(c, 2) = s2
-      s(c, 3) = s3
-      s(c, 4) = s4
-      a1 = g1*ilx
-      a2 = g2*ily
-      a3 = g3*ilx
-      a4 = g4*ily
-      b1 = t1
-      b2 = t2
-      b3 = t3
-      b4 = t4
-      include 'iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_energy.inc'
+      include 'elastic_loop/iem_cell_elastic_undamped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic_plain_energy
 
@@ -268,35 +186,19 @@ contains
     real(wp), intent(in) :: lc1(5), on(3)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
     integer(i8), intent(out) :: n_past
-    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
-    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
-    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4, l1, l2, l3, l4, l5
-    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4, on_t, on_c, on_s
-    integer :: c
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
+    real(wp) :: on_t, on_c, on_s
 
-    ilx = k%il0(1)
-    ily = k%il0(2)
-    l1 = lc1(1)
-    l2 = lc1(2)
-    l3 = lc1(3)
-    l4 = lc1(4)
-    l5 = lc1(5)
+    include 'elastic_loop/iem_cell_elastic_one_law.inc'
     on_t = on(1)
     on_c = on(2)
     on_s = on(3)
     n_past = 0
     do c = 1, m
-      include 'iem_cell_elastic_strains.inc'
-      include 'iem_cell_elastic_onsets.inc'
-      a1 = g1*ilx
-      a2 = g2*ily
-      a3 = g3*ilx
-      a4 = g4*ily
-      b1 = t1
-      b2 = t2
-      b3 = t3
-      b4 = t4
-      include 'iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_onsets.inc'
+      include 'elastic_loop/iem_cell_elastic_undamped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic_plain_lean
 
@@ -311,11 +213,8 @@ contains
     real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4), on(3)
     real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
     integer(i8), intent(out) :: n_past
-    real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
-    real(wp) :: p1, p2, p3, p4, s1, s2, s3, s4, g1, g2, g3, g4, t1, t2, t3, t4, ilx, ily
-    real(wp) :: a1, a2, a3, a4, b1, b2, b3, b4, l1, l2, l3, l4, l5
-    real(wp) :: q1x, q1y, q2x, q2y, q3x, q3y, q4x, q4y, c1, c2, c3, c4, on_t, on_c, on_s
-    integer :: c
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
+    real(wp) :: on_t, on_c, on_s
 
     ilx = k%il0(1)
     ily = k%il0(2)
@@ -324,23 +223,11 @@ contains
     on_s = on(3)
     n_past = 0
     do c = 1, m
-      l1 = lc(c, 1)
-      l2 = lc(c, 2)
-      l3 = lc(c, 3)
-      l4 = lc(c, 4)
-      l5 = lc(c, 5)
-      include 'iem_cell_elastic_strains.inc'
-      include 'iem_cell_elastic_onsets.inc'
-      ! a, b: g, t with the damping stresses; a per unit reference length
-      a1 = (g1 + hd(c, 1))*ilx
-      a2 = (g2 + hd(c, 2))*ily
-      a3 = (g3 + hd(c, 3))*ilx
-      a4 = (g4 + hd(c, 4))*ily
-      b1 = t1 + ud(c, 1)
-      b2 = t2 + ud(c, 2)
-      b3 = t3 + ud(c, 3)
-      b4 = t4 + ud(c, 4)
-      include 'iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_cell_law.inc'
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_onsets.inc'
+      include 'elastic_loop/iem_cell_elastic_damped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic_lean
 
