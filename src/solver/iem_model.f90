@@ -84,6 +84,9 @@ module iem_model
     !> Scratch for the kernel's plain energy sum, which the model does not ask for (0): the
     !> energies that a sample reports are the exact sums of en_cell.
     real(wp) :: energy = 0.0_wp
+    !> Whether a committed evaluation keeps the cells' energies in en_cell (a recorded one
+    !> always does): the time loop clears it for the states that no history sample reads.
+    logical :: energies_due = .true.
     !> The terms of the last rate evaluation, kept so that global sums are exact and so
     !> independent of the partition: each local cell's energy (of the last committed or
     !> recorded evaluation) and damping power (the latter
@@ -131,8 +134,8 @@ module iem_model
       real(wp), intent(inout), contiguous :: acc(:, :)
       real(wp), intent(out) :: p_ext, p_damp
       logical, intent(in), optional :: commit
-      !> Keep the cells' energies (en_cell) also without commit (default: only with commit,
-      !> the accepted states whose energies a history sample reports).
+      !> Keep the cells' energies (en_cell) also without commit (default: only with commit
+      !> and energies_due, the accepted states whose energies a history sample reports).
       logical, intent(in), optional :: record
       type(rk4_stage_t), intent(inout), optional :: stage
       real(wp), intent(in), optional, contiguous :: y0(:, :)

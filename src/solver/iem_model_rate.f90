@@ -19,7 +19,7 @@ contains
     ne = 0
     keep = .false.
     if (present(commit)) then
-      if (commit) ne = lat%n_cells
+      if (commit .and. this%energies_due) ne = lat%n_cells
       keep = commit
     end if
     if (present(record)) then

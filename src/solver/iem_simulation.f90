@@ -442,6 +442,9 @@ contains
           if (stat /= 0) return
         end if
       end if
+      ! the cells' energies only for the states a history sample reads
+      this%model%energies_due = k == 0 .or. k == this%n_steps .or. &
+                                crossed(t_prev, t, this%cfg%run%history_interval)
       call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, this%dt, k == 0)
       ! the last step stands once every rank agrees (RK4 agrees behind prepare's exchange)
       call this%integ%settle(this%st, accepted)
@@ -476,6 +479,8 @@ contains
       end if
       if (this%rank == 0) call progress(this, k, t, wall0, wall_last, next_report)
       if (k == this%n_steps) exit
+      this%model%energies_due = k + 1 == this%n_steps .or. &
+                                crossed(t, real(k + 1, wp)*this%dt, this%cfg%run%history_interval)
       call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
                            this%w_damp, accepted)
       if (.not. accepted) then
@@ -484,6 +489,7 @@ contains
       end if
       t_prev = t
     end do
+    this%model%energies_due = .true.
     call flush_history(this, stat)
     if (stat /= 0) then
       msg = 'writing the history to '//trim(this%cfg%run%output_file)//' failed'
