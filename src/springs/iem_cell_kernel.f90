@@ -208,8 +208,8 @@ contains
       call chunk_of(ic, c0, m, consec, b0, t0)
       ! the next chunk's top node row (values and forces) into the caches meanwhile
       if (ic < n_chunks()) call prefetch_chunk(ic + 1)
-      ! the chunk's bottom and top rows: a consecutive chunk's top row goes to the next slot,
-      ! its bottom row is the slot of the chunk below when that chunk's top row is this row
+      ! the chunk's bottom and top rows: a consecutive chunk's bottom row is the slot of the
+      ! chunk below when that chunk's top row is this row; its top row goes to a free slot
       ib = kernel_slots + 1
       it = kernel_slots + 2
       hit = 0
