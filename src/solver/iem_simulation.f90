@@ -406,7 +406,7 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     integer(i8) :: k, k_first, check_interval
     real(wp) :: t, t_prev, wall0, wall_last, next_report
-    logical :: diverged, accepted
+    logical :: diverged, accepted, sampled
 
     call report_start(this)
     wall0 = MPI_Wtime()
@@ -442,9 +442,10 @@ contains
           if (stat /= 0) return
         end if
       end if
-      ! the cells' energies only for the states a history sample reads
-      this%model%energies_due = k == 0 .or. k == this%n_steps .or. &
-                                crossed(t_prev, t, this%cfg%run%history_interval)
+      ! a history sample at this step; the cells' energies only for the states one reads
+      sampled = k == 0 .or. k == this%n_steps .or. &
+                crossed(t_prev, t, this%cfg%run%history_interval)
+      this%model%energies_due = sampled
       call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, this%dt, k == 0)
       ! the last step stands once every rank agrees (RK4 agrees behind prepare's exchange)
       call this%integ%settle(this%st, accepted)
@@ -456,8 +457,7 @@ contains
         call check_state(this, k, t, stat, msg)
         if (stat /= 0) return
       end if
-      if (k == 0 .or. k == this%n_steps .or. &
-          crossed(t_prev, t, this%cfg%run%history_interval)) then
+      if (sampled) then
         call record_sample(this, k, t, diverged)
         if (diverged) then
           call stop_diverged(this, k, t, stat, msg)
