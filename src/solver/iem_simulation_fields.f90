@@ -28,6 +28,8 @@ contains
     integer :: stat
     stat = 0
     call each_field(this, reg, op_out, .false., stat)
+    ! the springs' curves are derived from their state
+    if (this%model%nonlinear) call this%model%nl%stale()
     if (this%model%fracture) call this%model%fr%refresh(this%lat%cell_mat)
   end procedure state_from_registry
 

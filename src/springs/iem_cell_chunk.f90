@@ -324,7 +324,8 @@ contains
   !> n_dmg cells it reached), damping (only when damped) and the corner forces fx, fy(cell,
   !> corner).
   pure subroutine chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, &
-                                fy, en, pw, dmg, n_dmg, nl, c_first, accept, ks, mat, fr, time)
+                                fy, en, pw, dmg, n_dmg, nl, c_first, accept, ks, mat, fr, time, &
+                                energies)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     logical, intent(in) :: damped, filtered
@@ -345,6 +346,8 @@ contains
     !> Fracture state and the time of the state (committed with accept).
     type(fracture_t), intent(inout), optional :: fr
     real(wp), intent(in), optional :: time
+    !> Whether the nonlinear springs' energies en are wanted (default: yes; else en = 0).
+    logical, intent(in), optional :: energies
     ! per cell: unit edge vectors e, shear gradients a (d s/d a) and b (d s/d b), strains ep
     ! and shear measures s, generalised stresses g (edges) and t (corners), and the rates
     real(wp) :: ex(chunk, 4), ey(chunk, 4), ax(chunk, 4), ay(chunk, 4)
@@ -411,7 +414,7 @@ contains
       by(c, 4) = (e4y + s4*e3y)*i3
     end do
     if (present(nl)) then
-      call nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat)
+      call nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat, energies)
     else
       if (present(ks)) then
         call cell_law_mixed(ks, mat, m, ep, s, g, t)

@@ -182,7 +182,8 @@ contains
     pw = 0.0_wp
     ! the energy summed over the counted cells: only when the cells' energies are not asked for
     sums = .not. present(cell_energy)
-    ! the elastic cells' energies, strains and shear measures are stored only when asked for
+    ! the cells' energies (and the elastic cells' strains and shear measures) are formed only
+    ! when asked for
     lean = .not. (sums .or. keep_energy)
     onset = huge(1.0_wp)
     if (present(fr)) onset = fr%onset_min
@@ -259,11 +260,12 @@ contains
         if (by_material) then
           call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, fy, &
                              en, pw, &
-                             dmg, n_dmg, nl, c0, accept, ks, cell_mat(c0:c0 + m - 1))
+                             dmg, n_dmg, nl, c0, accept, ks, cell_mat(c0:c0 + m - 1), &
+                             energies=.not. lean)
         else
           call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, fy, &
                              en, pw, &
-                             dmg, n_dmg, nl, c0, accept)
+                             dmg, n_dmg, nl, c0, accept, energies=.not. lean)
         end if
       else
         if (by_material) then

@@ -5,24 +5,25 @@
 module iem_cell_laws
   use iem_kinds, only: wp, ip
   use iem_spring_constants, only: cell_constants_t, law_bending
-  use iem_nonlinear_springs, only: nonlinear_springs_t, springs_per_cell, spring_kind
-  use iem_masing, only: masing_springs, masing_constants, n_masing_constants
+  use iem_nonlinear_springs, only: nonlinear_springs_t, springs_per_cell, chunk_cells
+  use iem_masing_fast, only: n_q, q_half_energy
   implicit none
   private
   public :: chunk, cell_law, cell_law_mixed, nonlinear_law
 
   !> Cells per chunk of the vectorised kernel: the chunk's work arrays stay in L1 cache.
-  integer, parameter :: chunk = 64
+  integer, parameter :: chunk = chunk_cells
 
 contains
   !> The nonlinear law of the paper's cell on a chunk whose first cell is c_first: each
   !> spring's normalised stress psi from its committed history at its current strain (and,
   !> with accept, the history moved there), the generalised stresses g = 2 ce psi_edge +
-  !> 2 ch (psi_Poisson at both ends of the edge), t = 2 cg psi_shear, and the work done on the
-  !> cell's springs up to this state (trapezoidal increments from the committed state). The
-  !> chunk's springs go through iem_masing's masing_springs together (a branch-free loop for
-  !> the springs that stay on their curve, the state machine for the others).
-  pure subroutine nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat)
+  !> 2 ch (psi_Poisson at both ends of the edge), t = 2 cg psi_shear, and (unless energies is
+  !> .false.; then en = 0) the work done on the cell's springs up to this state (trapezoidal
+  !> increments from the committed state). The chunk's springs go through
+  !> iem_nonlinear_springs' stress and commit (vectorised loops for the springs that stay on
+  !> their curve, the state machine for the others).
+  pure subroutine nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat, energies)
     type(nonlinear_springs_t), intent(inout) :: nl
     integer, intent(in) :: c_first, m
     real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
@@ -30,78 +31,29 @@ contains
     real(wp), intent(out) :: g(chunk, 4), t(chunk, 4), en(chunk)
     !> Material of each cell of the chunk (absent: material 1).
     integer, intent(in), optional :: mat(:)
-    integer, parameter :: ns_max = springs_per_cell*chunk
-    ! per spring of the chunk (spring j of cell c at 12 (c - 1) + j, as in nl%state): its
-    ! strain, its stress, the committed strain and stress before this call, the law's
-    ! constants, half the energy coefficient, and the work increment
-    real(wp) :: e(ns_max), psi(ns_max), e_old(ns_max), psi_old(ns_max)
-    real(wp) :: p(ns_max, n_masing_constants), hc(ns_max), dw(ns_max)
-    real(wp) :: q(springs_per_cell, n_masing_constants + 1)
-    integer :: c, j, k, i0, ns, mc, mq, kind
+    logical, intent(in), optional :: energies
+    ! per spring k = 12 (c - 1) + j of the chunk (spring j of cell c): its stress and, for a
+    ! chunk of several materials, its constants
+    real(wp) :: psi(springs_per_cell*chunk), pm(springs_per_cell*chunk, n_q)
+    integer :: c, k, mc
+    logical :: want, mixed
+    want = .true.
+    if (present(energies)) want = energies
     mc = 1
-    mq = 0
-    i0 = springs_per_cell*(c_first - 1)
-    ns = springs_per_cell*m
-    do c = 1, m
-      if (present(mat)) mc = mat(c)
-      if (mc /= mq) then
-        ! the constants of each spring of a cell of material mc
-        do j = 1, springs_per_cell
-          kind = spring_kind(j)
-          q(j, 1:n_masing_constants) = masing_constants(nl%er_pos(kind, mc), &
-                                                        nl%er_neg(kind, mc))
-          q(j, n_masing_constants + 1) = 0.5_wp*nl%c2(kind, mc)
-        end do
-        mq = mc
-      end if
-      ! the cell's spring strains (iem_nonlinear_springs' spring_strains)
-      k = springs_per_cell*(c - 1)
-      e(k + 1) = ep(c, 1)
-      e(k + 2) = ep(c, 2)
-      e(k + 3) = ep(c, 3)
-      e(k + 4) = ep(c, 4)
-      e(k + 5) = ep(c, 1) + ep(c, 4)
-      e(k + 6) = ep(c, 2) + ep(c, 1)
-      e(k + 7) = ep(c, 3) + ep(c, 2)
-      e(k + 8) = ep(c, 4) + ep(c, 3)
-      e(k + 9) = s(c, 1)
-      e(k + 10) = s(c, 2)
-      e(k + 11) = s(c, 3)
-      e(k + 12) = s(c, 4)
-      p(k + 1:k + springs_per_cell, :) = q(:, 1:n_masing_constants)
-      hc(k + 1:k + springs_per_cell) = q(:, n_masing_constants + 1)
-    end do
-    associate(st => nl%state)
-      call masing_springs(ns, int(st%depth), e, p, accept, st%strain(i0 + 1:i0 + ns), &
-                          st%stress(i0 + 1:i0 + ns), st%dir(i0 + 1:i0 + ns), &
-                          st%count(i0 + 1:i0 + ns), st%e_rev(:, i0 + 1:i0 + ns), &
-                          st%s_rev(:, i0 + 1:i0 + ns), st%e_max_pos(i0 + 1:i0 + ns), &
-                          st%e_max_neg(i0 + 1:i0 + ns), psi, e_old, psi_old)
-    end associate
-    do k = 1, ns
-      dw(k) = hc(k)*(psi_old(k) + psi(k))*(e(k) - e_old(k))
-    end do
-    if (accept) then
-      do k = 1, ns
-        nl%work(i0 + k) = nl%work(i0 + k) + dw(k)
-      end do
+    mixed = .false.
+    if (present(mat)) then
+      mc = mat(1)
+      mixed = any(mat(1:m) /= mc)
     end if
-    ! the work of each cell, summed in the order of its springs (with accept, the work moved
-    ! to this state), for the cells side by side
-    en(1:m) = 0.0_wp
-    if (accept) then
-      do j = 1, springs_per_cell
-        do c = 1, m
-          en(c) = en(c) + nl%work(i0 + springs_per_cell*(c - 1) + j)
-        end do
+    if (mixed) then
+      ! each cell's rows of its material's table
+      do c = 1, m
+        k = springs_per_cell*(c - 1)
+        pm(k + 1:k + springs_per_cell, :) = nl%q(k + 1:k + springs_per_cell, :, mat(c))
       end do
+      call chunk_springs(nl, c_first, m, ep, s, accept, want, pm, psi, en)
     else
-      do j = 1, springs_per_cell
-        do c = 1, m
-          k = springs_per_cell*(c - 1) + j
-          en(c) = en(c) + nl%work(i0 + k) + dw(k)
-        end do
-      end do
+      call chunk_springs(nl, c_first, m, ep, s, accept, want, nl%q(:, :, mc), psi, en)
     end if
     mc = 1
     do c = 1, m
@@ -117,7 +69,70 @@ contains
       t(c, 3) = nl%c2(3, mc)*psi(k + 11)
       t(c, 4) = nl%c2(3, mc)*psi(k + 12)
     end do
+
   end subroutine nonlinear_law
+
+  !> The springs of nonlinear_law's chunk (spring k = 12 (c - 1) + j: spring j of cell c,
+  !> constants p(k, :)): their stresses psi, with accept their commit, and with want the
+  !> cells' energies en (else en = 0).
+  pure subroutine chunk_springs(nl, c_first, m, ep, s, accept, want, p, psi, en)
+    type(nonlinear_springs_t), intent(inout) :: nl
+    integer, intent(in) :: c_first, m
+    real(wp), intent(in) :: ep(chunk, 4), s(chunk, 4)
+    logical, intent(in) :: accept, want
+    real(wp), intent(in), contiguous :: p(:, :)
+    real(wp), intent(out) :: psi(springs_per_cell*chunk), en(chunk)
+    ! per spring: its strain, the work increment, and the kind of its move
+    real(wp) :: e(springs_per_cell*chunk), dw(springs_per_cell*chunk), mv(springs_per_cell*chunk)
+    integer :: c, j, k, i0, n, n_slow
+    i0 = springs_per_cell*(c_first - 1)
+    n = springs_per_cell*m
+    call nl%prepare(c_first, m, p)
+    do c = 1, m
+      ! the cell's spring strains (iem_nonlinear_springs' spring_strains)
+      k = springs_per_cell*(c - 1)
+      e(k + 1) = ep(c, 1)
+      e(k + 2) = ep(c, 2)
+      e(k + 3) = ep(c, 3)
+      e(k + 4) = ep(c, 4)
+      e(k + 5) = ep(c, 1) + ep(c, 4)
+      e(k + 6) = ep(c, 2) + ep(c, 1)
+      e(k + 7) = ep(c, 3) + ep(c, 2)
+      e(k + 8) = ep(c, 4) + ep(c, 3)
+      e(k + 9) = s(c, 1)
+      e(k + 10) = s(c, 2)
+      e(k + 11) = s(c, 3)
+      e(k + 12) = s(c, 4)
+    end do
+    ! a commit gives the stresses too, and adds the work
+    if (accept) then
+      call nl%commit(i0, n, e, p, psi)
+    else
+      call nl%stress(i0, n, e, p, psi, mv, n_slow)
+    end if
+    if (want .and. .not. accept) then
+      do k = 1, n
+        dw(k) = p(k, q_half_energy)*(nl%state%stress(i0 + k) + psi(k))* &
+                (e(k) - nl%state%strain(i0 + k))
+      end do
+    end if
+    ! the work of each cell, summed in the order of its springs (with accept, the work moved
+    ! to this state)
+    en(1:m) = 0.0_wp
+    if (.not. want) return
+    do c = 1, m
+      k = springs_per_cell*(c - 1)
+      if (accept) then
+        do j = 1, springs_per_cell
+          en(c) = en(c) + nl%work(i0 + k + j)
+        end do
+      else
+        do j = 1, springs_per_cell
+          en(c) = en(c) + nl%work(i0 + k + j) + dw(k + j)
+        end do
+      end if
+    end do
+  end subroutine chunk_springs
 
   !> The elastic cell law on a chunk: generalised stresses g = dPi/d eps (edges) and
   !> t = dPi/d s (corners) from edge strains ep and corner shear measures s.

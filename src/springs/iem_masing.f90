@@ -17,17 +17,16 @@ module iem_masing
   public :: skeleton_stress, skeleton_tangent, hyperbola_stress, hyperbola_tangent
   public :: masing_branch_strength, masing_mirror_strain
   public :: masing_trial, masing_commit, masing_stress_all, masing_commit_all
-  public :: masing_constants, masing_springs, n_masing_constants
+  public :: masing_constants, masing_curve, n_masing_constants
+  public :: k_pos, k_neg, k_branch, k_mirror_pos, k_mirror_neg
 
   !> Default number of reversal points kept per spring (nested loops remembered: depth/2).
   integer(ip), parameter :: masing_default_depth = 8
 
-  !> Number of constants per spring that masing_springs reads (masing_constants): the two
-  !> strengths, the branch strength and the two mirror factors.
+  !> Number of constants of a spring's law (masing_constants): the two strengths, the branch
+  !> strength and the two mirror factors, at these indices.
   integer, parameter :: n_masing_constants = 5
   integer, parameter :: k_pos = 1, k_neg = 2, k_branch = 3, k_mirror_pos = 4, k_mirror_neg = 5
-  !> Springs per block of masing_springs (its work arrays stay in L1 cache).
-  integer, parameter :: block = 128
 
   !> History of many nonlinear springs, struct of arrays; spring i's stack is column i.
   type :: masing_state_t
@@ -217,7 +216,7 @@ contains
     e_max_neg = min(e_max_neg, e)
   end subroutine masing_commit
 
-  !> The constants masing_springs reads for a spring of strengths smax_pos, smax_neg (with
+  !> The constants of the law of a spring of strengths smax_pos, smax_neg (with
   !> Emax = 1): the strengths, the branch strength and the mirror factors of a tension and of
   !> a compression point, each computed as masing_branch_strength, masing_mirror_strain do.
   pure function masing_constants(smax_pos, smax_neg) result(p)
@@ -230,126 +229,69 @@ contains
     p(k_mirror_neg) = smax_pos/smax_neg
   end function masing_constants
 
-  !> Stresses s of n springs with Emax = 1 (constants p(i, :) from masing_constants) at the
-  !> strains e, each reached monotonically from its committed state (e_c .. e_max_neg, stack
-  !> depth D), and that state's strain and stress e_was, s_was; with accept, the state moved
-  !> to e. Bit for bit masing_trial / masing_commit of each spring: the springs whose move
-  !> ends on the curve it starts on (their current one, or the branch a reversal starts) are
-  !> evaluated and committed in branch-free loops over a block of springs, the others (a
-  !> branch reaches its aim, an overflow retrace its start) take the scalar state machine.
-  pure subroutine masing_springs(n, depth, e, p, accept, e_c, s_c, dir, count, e_rev, s_rev, &
-      e_max_pos, e_max_neg, s, e_was, s_was)
-    integer, intent(in) :: n, depth
-    real(wp), intent(in) :: e(n)
-    !> Constants of spring i in p(i, :) (rows past n unused).
-    real(wp), intent(in), contiguous :: p(:, :)
-    logical, intent(in) :: accept
-    real(wp), intent(inout) :: e_c(n), s_c(n)
-    integer(ip), intent(inout) :: dir(n), count(n)
-    real(wp), intent(inout) :: e_rev(depth, n), s_rev(depth, n), e_max_pos(n), e_max_neg(n)
-    real(wp), intent(out) :: s(n), e_was(n), s_was(n)
-    ! per spring of a block: the level reached and the direction of its move when fast (0:
-    ! not fast, or no move), and what is left to do (0 nothing, 1 store the reversal pushed,
-    ! 2 the scalar state machine)
-    integer(ip) :: level(block), move(block)
-    integer :: todo(block)
-    integer :: b, nb, k, i
-    integer(ip) :: lev, m, n0, d0, push, fast, short
-    logical :: moved
-    real(wp) :: t, e0, s0, aim, d, x, r, y, ek, ec, sc, et, st, eb, pp, pn, pb, mp, mn
-    real(wp) :: mirror, half, on_branch
-    do b = 0, n - 1, block
-      nb = min(block, n - b)
-      ! the first pass of masing_walk's loop, without branches: the level reached, the
-      ! direction of the move, whether the committed point is pushed as a reversal, and
-      ! whether the move ends on the curve it starts on, with the stress there
-      do k = 1, nb
-        i = b + k
-        ! every operand read once, unconditionally (the top of the stack, R_n and R_(n-1),
-        ! read as R_1 when there is none, and then not used)
-        ek = e(i)
-        ec = e_c(i)
-        sc = s_c(i)
-        n0 = count(i)
-        d0 = dir(i)
-        et = e_rev(max(n0, 1_ip), i)
-        st = s_rev(max(n0, 1_ip), i)
-        eb = e_rev(max(n0 - 1_ip, 1_ip), i)
-        pp = p(i, k_pos)
-        pn = p(i, k_neg)
-        pb = p(i, k_branch)
-        mp = p(i, k_mirror_pos)
-        mn = p(i, k_mirror_neg)
-        ! every comparison and every operation is done unconditionally, the conditions are
-        ! integers 0 / 1 and merge selects between values, so that the loop has no branch
-        m = merge(1_ip, 0_ip, ek > ec) - merge(1_ip, 0_ip, ek < ec)
-        push = merge(1_ip, 0_ip, d0 /= 0 .and. m == -d0 .and. n0 < depth)
-        lev = n0 + push
-        ! start, aim and direction of the branch of that level (masing_walk's level_params):
-        ! R_(lev-1) for lev >= 2, the mirror of the start for lev = 1
-        e0 = merge(ec, et, push == 1)
-        s0 = merge(sc, st, push == 1)
-        mirror = -e0*merge(mp, mn, e0 >= 0.0_wp)
-        aim = merge(merge(et, eb, push == 1), mirror, lev >= 2)
-        d = merge(merge(1.0_wp, -1.0_wp, aim > e0), merge(-1.0_wp, 1.0_wp, e0 > 0.0_wp), &
-                  lev >= 2)
-        ! on it at e: forward short of its aim, or backward (overflow retrace) short of its
-        ! start; an unchanged strain is fast, a NaN is not (masing_commit stores it)
-        short = merge(merge(1_ip, 0_ip, d*(ek - aim) < 0.0_wp), &
-                      merge(1_ip, 0_ip, d*(ek - e0) > 0.0_wp), real(m, wp) == d)
-        fast = max(merge(1_ip, 0_ip, ek == ec), &
-                   abs(m)*max(merge(1_ip, 0_ip, lev == 0), short))
-        ! the skeleton's and the branches' hyperbolas are one function of (x, strength)
-        half = 0.5_wp*(ek - e0)
-        x = merge(ek, half, lev == 0)
-        r = merge(merge(pp, pn, ek >= 0.0_wp), pb, lev == 0)
-        y = x/(1.0_wp + abs(x)/r)
-        on_branch = s0 + 2.0_wp*y
-        s(i) = merge(sc, merge(y, on_branch, lev == 0), m == 0)
-        e_was(i) = ec
-        s_was(i) = sc
-        level(k) = lev
-        move(k) = m*fast
-        ! left to do: a pushed reversal to store (accepted), or the state machine
-        todo(k) = merge(push*abs(m)*merge(1, 0, accept), 2, fast == 1)
-      end do
-      if (accept) then
-        ! what masing_commit does for a fast move (nothing for an unchanged strain)
-        do k = 1, nb
-          i = b + k
-          moved = move(k) /= 0
-          count(i) = merge(level(k), count(i), moved)
-          dir(i) = merge(move(k), dir(i), moved)
-          e_c(i) = merge(e(i), e_c(i), moved)
-          s_c(i) = merge(s(i), s_c(i), moved)
-          e_max_pos(i) = merge(max(e_max_pos(i), e(i)), e_max_pos(i), moved)
-          e_max_neg(i) = merge(min(e_max_neg(i), e(i)), e_max_neg(i), moved)
-        end do
-        ! and the reversals it pushed (count(i) is now the level of the new branch)
-!GCC$ novector
-        do k = 1, nb
-          if (todo(k) /= 1) cycle
-          i = b + k
-          e_rev(count(i), i) = e_was(i)
-          s_rev(count(i), i) = s_was(i)
-        end do
+  !> The curves of one spring in its committed state (strain e_c, direction dir, stack count
+  !> and reversal points e_rev, s_rev of depth size(e_rev); mirror factors mp = smax_neg /
+  !> smax_pos, mn = smax_pos / smax_neg), that masing_walk would follow from it: a move to a
+  !> strain e in the open interval (lo, hi) ends on the curve it starts on (e /= e_c; lo is
+  !> e_c or -huge when no move down does, hi likewise); a move in direction ps (+1, -1; 0:
+  !> none) pushes e_c as a reversal and starts a branch there, any other move continues on
+  !> the current curve: the skeleton (e0 = s0 = 0, hk = 1) or the branch from (e0, s0)
+  !> (hk = 1/2). docs/nonlinear.md, section 6a.
+  pure subroutine masing_curve(e_c, dir, count, e_rev, s_rev, mp, mn, lo, hi, e0, s0, hk, ps)
+    real(wp), intent(in) :: e_c, e_rev(:), s_rev(:), mp, mn
+    integer(ip), intent(in) :: dir, count
+    real(wp), intent(out) :: lo, hi, e0, s0, hk, ps
+    integer :: side
+    real(wp) :: bound
+    if (count == 0) then
+      e0 = 0.0_wp
+      s0 = 0.0_wp
+      hk = 1.0_wp
+    else
+      e0 = e_rev(count)
+      s0 = s_rev(count)
+      hk = 0.5_wp
+    end if
+    ps = 0.0_wp
+    if (dir /= 0 .and. count < size(e_rev)) ps = real(-dir, wp)
+    lo = e_c
+    hi = e_c
+    do side = -1, 1, 2
+      if (real(side, wp) == ps) then
+        ! the branch the push starts, from the committed point
+        bound = branch_end(count + 1_ip, e_c, side)
+      else if (count == 0) then
+        bound = real(side, wp)*huge(1.0_wp)
+      else
+        bound = branch_end(count, e0, side)
       end if
-      ! the other springs take the state machine
-      do k = 1, nb
-        if (todo(k) /= 2) cycle
-        i = b + k
-        if (accept) then
-          call masing_commit(e(i), 1.0_wp, p(i, k_pos), p(i, k_neg), e_c(i), s_c(i), dir(i), &
-                             count(i), e_rev(:, i), s_rev(:, i), e_max_pos(i), e_max_neg(i))
-          ! the committed stress is bit for bit the trial stress at the same strain
-          s(i) = s_c(i)
-        else
-          call masing_trial(e(i), 1.0_wp, p(i, k_pos), p(i, k_neg), e_c(i), s_c(i), dir(i), &
-                            count(i), e_rev(:, i), s_rev(:, i), s(i), t)
-        end if
-      end do
+      if (side > 0) then
+        hi = bound
+      else
+        lo = bound
+      end if
     end do
-  end subroutine masing_springs
+
+  contains
+
+    !> Where branch k, starting at strain start, ends for a move in direction side: its aim
+    !> (masing_walk's level_params) when the move goes its way, else its start.
+    pure real(wp) function branch_end(k, start, side) result(b)
+      integer(ip), intent(in) :: k
+      real(wp), intent(in) :: start
+      integer, intent(in) :: side
+      real(wp) :: aim
+      integer :: d
+      if (k >= 2) then
+        aim = e_rev(k - 1)
+        d = merge(1, -1, aim > start)
+      else
+        aim = -start*merge(mp, mn, start >= 0.0_wp)
+        d = merge(-1, 1, start > 0.0_wp)
+      end if
+      b = merge(aim, start, side == d)
+    end function branch_end
+  end subroutine masing_curve
 
   !> Allocates the state of n_springs virgin springs (at zero strain) with stack depth D
   !> (default masing_default_depth); stat = 1 for n_springs < 0 or depth < 1.

@@ -2,21 +2,31 @@
 !> 4 shear) follows the hyperbolic skeleton with Masing hysteresis (iem_masing), with a
 !> reference strain per spring kind and sign mapped from the continuum strengths
 !> (docs/nonlinear.md, "Which strength drives which spring"). Holds the springs' history
-!> (committed only at accepted states) and the work done on them.
+!> (committed only at accepted states), the work done on them, and the curve each is on
+!> (iem_masing's masing_curve), with which the springs of a chunk of cells are evaluated and
+!> committed in vectorised loops (docs/nonlinear.md, section 6a).
 module iem_nonlinear_springs
   use iem_kinds, only: wp, ip
-  use iem_masing, only: masing_state_t
+  use iem_masing, only: masing_state_t, masing_curve, masing_trial, masing_commit, &
+                        masing_constants, n_masing_constants, k_pos, k_neg, k_mirror_pos, &
+                        k_mirror_neg
+  use iem_masing_fast, only: fast_stresses, fast_commit, n_q, q_half_energy, n_commit_real, &
+                             n_commit_int, c_strain, c_stress, c_max_pos, c_max_neg, c_ps, c_e0, &
+                             c_s0, c_hk, c_lo, c_hi, c_count, c_dir
   use iem_spring_constants, only: effective_elastic
   use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
   public :: nonlinear_springs_t, springs_per_cell, spring_kind_edge, spring_kind_poisson
   public :: spring_kind_shear, spring_kind, spring_strains, reference_strains
+  public :: chunk_cells
 
   !> Springs of one cell, in this order: edges 1..4 (bottom, right, top, left), Poisson
   !> springs at corners 1..4 (SW, SE, NE, NW), shear springs at corners 1..4.
   integer, parameter :: springs_per_cell = 12
   integer, parameter :: spring_kind_edge = 1, spring_kind_poisson = 2, spring_kind_shear = 3
+  !> Cells of a chunk of the force kernel (iem_cell_laws' chunk): the rows of the table q.
+  integer, parameter :: chunk_cells = 64
 
   !> The nonlinear springs of the local cells of one rank.
   type :: nonlinear_springs_t
@@ -31,9 +41,25 @@ module iem_nonlinear_springs
     type(masing_state_t) :: state
     !> Work done on each spring up to its committed strain (J): stored plus dissipated.
     real(wp), allocatable :: work(:)
+    !> The constants of the springs of a chunk of cells of one material: q(k, :, material)
+    !> for spring k = 12 (c - 1) + j of the chunk (spring j of its cell c), c = 1..chunk_cells.
+    real(wp), allocatable :: q(:, :, :)
+    !> The curve each spring is on (masing_curve, per spring as the state): the interval
+    !> (lo, hi) of the strains a move ends on the curve it starts on, the start (e0, s0) and
+    !> scale hk of the curve a move continues on, and the direction ps of a move that pushes
+    !> a reversal. Derived from the state, not saved: a cell's are made when first needed
+    !> after ready(cell) was cleared (init, stale).
+    real(wp), allocatable :: lo(:), hi(:), e0(:), s0(:), hk(:), ps(:)
+    logical, allocatable :: ready(:)
+    !> Number of cells whose curves are made.
+    integer :: n_ready = 0
   contains
     procedure :: init => nonlinear_springs_init
     procedure :: set_law => nonlinear_springs_set_law
+    procedure :: stale => nonlinear_springs_stale
+    procedure :: prepare => nonlinear_springs_prepare
+    procedure :: stress => nonlinear_springs_stress
+    procedure :: commit => nonlinear_springs_commit
   end type nonlinear_springs_t
 
 contains
@@ -74,22 +100,28 @@ contains
     integer, intent(in), optional :: n_materials
     type(alloc_guard_t) :: g
     integer(ip) :: st
-    integer :: ierr, nm
+    integer :: ierr, nm, j, n
     real(wp) :: bytes
     nm = 1
     if (present(n_materials)) nm = n_materials
-    if (allocated(this%er_pos)) deallocate(this%er_pos, this%er_neg, this%c2)
-    allocate(this%er_pos(3, nm), this%er_neg(3, nm), this%c2(3, nm))
-    this%er_pos = 0.0_wp
-    this%er_neg = 0.0_wp
-    this%c2 = 0.0_wp
+    if (allocated(this%er_pos)) deallocate(this%er_pos, this%er_neg, this%c2, this%q)
+    allocate(this%er_pos(3, nm), this%er_neg(3, nm), this%c2(3, nm), &
+             this%q(springs_per_cell*chunk_cells, n_q, nm))
+    ! a material whose law is not set: reference strains 1, no energy
+    do j = 1, nm
+      call this%set_law(j, [1.0_wp, 1.0_wp, 1.0_wp], [1.0_wp, 1.0_wp, 1.0_wp], &
+                        [0.0_wp, 0.0_wp, 0.0_wp])
+    end do
     call this%set_law(1, er_pos, er_neg, coeffs)
-    bytes = real(springs_per_cell, wp)*n_cells*(48.0_wp + 16.0_wp*depth)
+    bytes = real(springs_per_cell, wp)*n_cells*(104.0_wp + 16.0_wp*depth)
     call this%state%init(int(springs_per_cell*n_cells, ip), int(depth, ip), st)
     call g%note(int(st), 'the nonlinear springs of the rank', bytes)
-    if (allocated(this%work)) deallocate(this%work)
+    if (allocated(this%work)) deallocate(this%work, this%lo, this%hi, this%e0, this%s0, &
+                                         this%hk, this%ps, this%ready)
     if (.not. g%failed) then
-      allocate(this%work(springs_per_cell*n_cells), stat=ierr)
+      n = springs_per_cell*n_cells
+      allocate(this%work(n), this%lo(n), this%hi(n), this%e0(n), this%s0(n), this%hk(n), &
+               this%ps(n), this%ready(n_cells), stat=ierr)
       call g%note(ierr, 'the nonlinear springs of the rank', bytes)
     end if
     if (g%failed) then
@@ -97,16 +129,31 @@ contains
       return
     end if
     this%work = 0.0_wp
+    call this%stale()
   end subroutine nonlinear_springs_init
+
+  !> Mark every cell's curves as to be made again from the state: after the state was set
+  !> other than by commit (a restart, a repartitioning).
+  pure subroutine nonlinear_springs_stale(this)
+    class(nonlinear_springs_t), intent(inout) :: this
+    if (allocated(this%ready)) this%ready = .false.
+    this%n_ready = 0
+  end subroutine nonlinear_springs_stale
 
   !> Set the reference strains and energy coefficients (ce, ch, cg) of material m.
   pure subroutine nonlinear_springs_set_law(this, m, er_pos, er_neg, coeffs)
     class(nonlinear_springs_t), intent(inout) :: this
     integer, intent(in) :: m
     real(wp), intent(in) :: er_pos(3), er_neg(3), coeffs(3)
+    integer :: k, kind
     this%er_pos(:, m) = er_pos
     this%er_neg(:, m) = er_neg
     this%c2(:, m) = 2.0_wp*coeffs
+    do k = 1, springs_per_cell*chunk_cells
+      kind = spring_kind(mod(k - 1, springs_per_cell) + 1)
+      this%q(k, 1:n_masing_constants, m) = masing_constants(er_pos(kind), er_neg(kind))
+      this%q(k, q_half_energy, m) = 0.5_wp*this%c2(kind, m)
+    end do
   end subroutine nonlinear_springs_set_law
 
   !> The 12 spring strains of a cell from its edge strains ep(4) and corner shear measures
@@ -116,4 +163,152 @@ contains
     real(wp) :: e(springs_per_cell)
     e = [ep, ep(1) + ep(4), ep(2) + ep(1), ep(3) + ep(2), ep(4) + ep(3), s]
   end function spring_strains
+
+  !> Make the curves of those of the cells c_first .. c_first + m - 1 whose curves are not
+  !> ready; spring k of the chunk (spring j of its cell c at 12 (c - 1) + j) has the
+  !> constants p(k, :) (the table q of its material, or such rows).
+  pure subroutine nonlinear_springs_prepare(this, c_first, m, p)
+    class(nonlinear_springs_t), intent(inout) :: this
+    integer, intent(in) :: c_first, m
+    real(wp), intent(in), contiguous :: p(:, :)
+    integer :: c, j, k
+    if (this%n_ready == size(this%ready)) return
+    do c = 1, m
+      if (this%ready(c_first + c - 1)) cycle
+      do j = 1, springs_per_cell
+        k = springs_per_cell*(c - 1) + j
+        call make_curve(this, springs_per_cell*(c_first - 1) + k, p(k, k_mirror_pos), &
+                        p(k, k_mirror_neg))
+      end do
+      this%ready(c_first + c - 1) = .true.
+      this%n_ready = this%n_ready + 1
+    end do
+  end subroutine nonlinear_springs_prepare
+
+  !> Normalised stresses s(k) of the springs i0 + k, k = 1..n (constants p(k, :), curves
+  !> ready) at the strains e(k), each reached monotonically from its committed state, bit for
+  !> bit masing_trial's; the state is not changed. mv(k) gives the kind of each move: 0 on its
+  !> curve (or none), 1 a push on to a new branch (both from a branch-free vectorised loop),
+  !> 2 (n_slow of them) the state machine's.
+  pure subroutine nonlinear_springs_stress(this, i0, n, e, p, s, mv, n_slow)
+    class(nonlinear_springs_t), intent(in) :: this
+    integer, intent(in) :: i0, n
+    real(wp), intent(in) :: e(n)
+    real(wp), intent(in), contiguous :: p(:, :)
+    real(wp), intent(out) :: s(n), mv(n)
+    integer, intent(out) :: n_slow
+    real(wp) :: tan
+    integer :: list(n), k, i, m
+    associate(st => this%state, j => i0 + 1, l => i0 + n)
+      call fast_stresses(n, e, p, size(p, 1), 0, st%strain(j:l), st%stress(j:l), this%ps(j:l), &
+                         this%e0(j:l), this%s0(j:l), this%hk(j:l), this%lo(j:l), this%hi(j:l), &
+                         s, mv)
+    end associate
+    call moves_from(n, mv, 2.0_wp, list, n_slow)
+    do m = 1, n_slow
+      k = list(m)
+      i = i0 + k
+      associate(st => this%state)
+        call masing_trial(e(k), 1.0_wp, p(k, k_pos), p(k, k_neg), st%strain(i), st%stress(i), &
+                          st%dir(i), st%count(i), st%e_rev(:, i), st%s_rev(:, i), s(k), tan)
+      end associate
+    end do
+  end subroutine nonlinear_springs_stress
+
+  !> Commit the springs i0 + k, k = 1..n (constants p(k, :), curves ready) to the strains
+  !> e(k), with their stresses s(k) there, and add the work increments (trapezoidal, from the
+  !> committed state) to their work: bit for bit masing_commit. Block by block of springs,
+  !> the moves that end on their curve or push on to a new branch are evaluated and
+  !> committed in vectorised loops (the pushed points stored between), the others then by
+  !> masing_commit, with their curves made again.
+  pure subroutine nonlinear_springs_commit(this, i0, n, e, p, s)
+    class(nonlinear_springs_t), intent(inout) :: this
+    integer, intent(in) :: i0, n
+    real(wp), intent(in) :: e(n)
+    real(wp), intent(out) :: s(n)
+    real(wp), intent(in), contiguous :: p(:, :)
+    ! a block of springs: small enough for its values to stay in the nearest cache between
+    ! the loops; the kinds of the moves and the new values
+    integer, parameter :: block = 128
+    real(wp) :: mv(n), room(block), nr(block, n_commit_real), ec, sc, dw
+    integer(ip) :: ni(block, n_commit_int)
+    integer :: list(n), k, i, m, n_slow, n_off, b, nb
+    associate(st => this%state)
+      do b = 0, n - 1, block
+        nb = min(block, n - b)
+        associate(j => i0 + b + 1, l => i0 + b + nb, q => b + 1, r => b + nb)
+          call fast_stresses(nb, e(q:r), p, size(p, 1), b, st%strain(j:l), &
+                             st%stress(j:l), this%ps(j:l), this%e0(j:l), this%s0(j:l), &
+                             this%hk(j:l), this%lo(j:l), this%hi(j:l), s(q:r), mv(q:r))
+          room(1:nb) = real(st%depth - st%count(j:l) - 1, wp)
+          call fast_commit(nb, room, e(q:r), p, size(p, 1), b, s(q:r), mv(q:r), &
+                           st%strain(j:l), st%stress(j:l), st%dir(j:l), st%count(j:l), &
+                           st%e_max_pos(j:l), st%e_max_neg(j:l), this%ps(j:l), this%e0(j:l), &
+                           this%s0(j:l), this%hk(j:l), this%lo(j:l), this%hi(j:l), &
+                           this%work(j:l), block, nr, ni)
+          ! the reversal points pushed: the committed points before the move
+          call moves_from(nb, mv(q:r), 1.0_wp, list, n_off)
+          do m = 1, n_off
+            if (mv(b + list(m)) /= 1.0_wp) cycle
+            i = i0 + b + list(m)
+            st%e_rev(st%count(i) + 1, i) = st%strain(i)
+            st%s_rev(st%count(i) + 1, i) = st%stress(i)
+          end do
+          st%strain(j:l) = nr(1:nb, c_strain)
+          st%stress(j:l) = nr(1:nb, c_stress)
+          st%e_max_pos(j:l) = nr(1:nb, c_max_pos)
+          st%e_max_neg(j:l) = nr(1:nb, c_max_neg)
+          st%count(j:l) = ni(1:nb, c_count)
+          st%dir(j:l) = ni(1:nb, c_dir)
+          this%ps(j:l) = nr(1:nb, c_ps)
+          this%e0(j:l) = nr(1:nb, c_e0)
+          this%s0(j:l) = nr(1:nb, c_s0)
+          this%hk(j:l) = nr(1:nb, c_hk)
+          this%lo(j:l) = nr(1:nb, c_lo)
+          this%hi(j:l) = nr(1:nb, c_hi)
+        end associate
+      end do
+      call moves_from(n, mv, 2.0_wp, list, n_slow)
+      do m = 1, n_slow
+        k = list(m)
+        i = i0 + k
+        ec = st%strain(i)
+        sc = st%stress(i)
+        call masing_commit(e(k), 1.0_wp, p(k, k_pos), p(k, k_neg), st%strain(i), st%stress(i), &
+                           st%dir(i), st%count(i), st%e_rev(:, i), st%s_rev(:, i), &
+                           st%e_max_pos(i), st%e_max_neg(i))
+        ! the committed stress is bit for bit the trial stress at the same strain
+        s(k) = st%stress(i)
+        dw = p(k, q_half_energy)*(sc + s(k))*(e(k) - ec)
+        this%work(i) = this%work(i) + dw
+        call make_curve(this, i, p(k, k_mirror_pos), p(k, k_mirror_neg))
+      end do
+    end associate
+  end subroutine nonlinear_springs_commit
+
+  !> The n_of moves k of kind v or above (mv(k) >= v), in order: list(1:n_of).
+  pure subroutine moves_from(n, mv, v, list, n_of)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: mv(n), v
+    integer, intent(out) :: list(n), n_of
+    integer :: k
+    ! without a branch: each k is written, and kept when of such a kind
+    n_of = 0
+    do k = 1, n
+      list(n_of + 1) = k
+      n_of = n_of + merge(1, 0, mv(k) >= v)
+    end do
+  end subroutine moves_from
+
+  !> Make the curve of spring i (mirror factors mp, mn) from its state.
+  pure subroutine make_curve(this, i, mp, mn)
+    class(nonlinear_springs_t), intent(inout) :: this
+    integer, intent(in) :: i
+    real(wp), intent(in) :: mp, mn
+    associate(st => this%state)
+      call masing_curve(st%strain(i), st%dir(i), st%count(i), st%e_rev(:, i), st%s_rev(:, i), &
+                        mp, mn, this%lo(i), this%hi(i), this%e0(i), this%s0(i), this%hk(i), &
+                        this%ps(i))
+    end associate
+  end subroutine make_curve
 end module iem_nonlinear_springs
