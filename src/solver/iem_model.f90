@@ -214,8 +214,12 @@ contains
             er_neg = elastic_er
           end if
           if (mt == 1) then
+            ! the springs' curves pay where trial evaluations come between commits (RK4's
+            ! stages, the static relaxation's iterations), not where each one commits
             call this%nl%init(lat%n_cells, er_pos, er_neg, [this%ks(1)%ce, this%ks(1)%ch, &
-                              this%ks(1)%cg], maxval(cfg%materials(:)%history_depth), g, nm)
+                              this%ks(1)%cg], maxval(cfg%materials(:)%history_depth), g, nm, &
+                              curves=cfg%run%analysis == 'static' .or. &
+                                     cfg%run%integrator /= 'verlet')
             if (g%failed) then
               call g%pass(guard)
               return

@@ -6,7 +6,7 @@ module iem_cell_laws
   use iem_kinds, only: wp, ip
   use iem_spring_constants, only: cell_constants_t, law_bending
   use iem_nonlinear_springs, only: nonlinear_springs_t, springs_per_cell, chunk_cells
-  use iem_masing_fast, only: n_q, q_half_energy
+  use iem_masing_fast, only: n_q, q_half_energy, masing_springs
   implicit none
   private
   public :: chunk, cell_law, cell_law_mixed, nonlinear_law
@@ -74,7 +74,8 @@ contains
 
   !> The springs of nonlinear_law's chunk (spring k = 12 (c - 1) + j: spring j of cell c,
   !> constants p(k, :)): their stresses psi, with accept their commit, and with want the
-  !> cells' energies en (else en = 0).
+  !> cells' energies en (else en = 0); with their curves (iem_nonlinear_springs) or, when
+  !> the springs keep none, from the top of their stacks (masing_springs).
   pure subroutine chunk_springs(nl, c_first, m, ep, s, accept, want, p, psi, en)
     type(nonlinear_springs_t), intent(inout) :: nl
     integer, intent(in) :: c_first, m
@@ -82,8 +83,10 @@ contains
     logical, intent(in) :: accept, want
     real(wp), intent(in), contiguous :: p(:, :)
     real(wp), intent(out) :: psi(springs_per_cell*chunk), en(chunk)
-    ! per spring: its strain, the work increment, and the kind of its move
+    ! per spring: its strain, the work increment, the kind of its move, and the committed
+    ! strain and stress it moved from
     real(wp) :: e(springs_per_cell*chunk), dw(springs_per_cell*chunk), mv(springs_per_cell*chunk)
+    real(wp) :: e_old(springs_per_cell*chunk), psi_old(springs_per_cell*chunk)
     integer :: c, j, k, i0, n, n_slow
     i0 = springs_per_cell*(c_first - 1)
     n = springs_per_cell*m
@@ -104,17 +107,34 @@ contains
       e(k + 11) = s(c, 3)
       e(k + 12) = s(c, 4)
     end do
-    ! a commit gives the stresses too, and adds the work
-    if (accept) then
+    if (.not. nl%curves) then
+      ! a run that commits every evaluation: from the top of each spring's stack
+      associate(st => nl%state, j => i0 + 1, l => i0 + n)
+        call masing_springs(n, int(st%depth), e, p, accept, st%strain(j:l), st%stress(j:l), &
+                            st%dir(j:l), st%count(j:l), st%e_rev(:, j:l), st%s_rev(:, j:l), &
+                            st%e_max_pos(j:l), st%e_max_neg(j:l), psi, e_old, psi_old)
+      end associate
+      if (accept .or. want) then
+        do k = 1, n
+          dw(k) = p(k, q_half_energy)*(psi_old(k) + psi(k))*(e(k) - e_old(k))
+        end do
+      end if
+      if (accept) then
+        do k = 1, n
+          nl%work(i0 + k) = nl%work(i0 + k) + dw(k)
+        end do
+      end if
+    else if (accept) then
+      ! with the springs' curves; a commit gives the stresses too, and adds the work
       call nl%commit(i0, n, e, p, psi)
     else
       call nl%stress(i0, n, e, p, psi, mv, n_slow)
-    end if
-    if (want .and. .not. accept) then
-      do k = 1, n
-        dw(k) = p(k, q_half_energy)*(nl%state%stress(i0 + k) + psi(k))* &
-                (e(k) - nl%state%strain(i0 + k))
-      end do
+      if (want) then
+        do k = 1, n
+          dw(k) = p(k, q_half_energy)*(nl%state%stress(i0 + k) + psi(k))* &
+                  (e(k) - nl%state%strain(i0 + k))
+        end do
+      end if
     end if
     ! the work of each cell, summed in the order of its springs (with accept, the work moved
     ! to this state)

@@ -1,15 +1,18 @@
 !> The branch-free loops over many nonlinear springs with which iem_nonlinear_springs evaluates
-!> and commits the common move, one that ends on the curve it starts on (iem_masing's
-!> masing_curve): every operation done for every spring and every selection a merge, so that
-!> gfortran vectorises them (this file is compiled with -fno-trapping-math in Release builds,
-!> and kept apart from its callers: inlined into them, gfortran 12 no longer vectorises the
-!> loops). docs/nonlinear.md, section 6a.
+!> and commits the common move, one that ends on the curve it starts on: with the springs'
+!> curves (iem_masing's masing_curve; fast_stresses, fast_commit), or from the top of their
+!> stacks (masing_springs, for runs that commit every evaluation): every operation done for
+!> every spring and every selection a merge, so that gfortran vectorises them (this file is
+!> compiled with -fno-trapping-math in Release builds, and kept apart from its callers:
+!> inlined into them, gfortran 12 no longer vectorises the loops). docs/nonlinear.md,
+!> section 6a.
 module iem_masing_fast
   use iem_kinds, only: wp, ip
-  use iem_masing, only: n_masing_constants, k_pos, k_neg, k_branch, k_mirror_pos, k_mirror_neg
+  use iem_masing, only: n_masing_constants, k_pos, k_neg, k_branch, k_mirror_pos, k_mirror_neg, &
+                        masing_commit, masing_trial
   implicit none
   private
-  public :: fast_stresses, fast_commit, n_q, q_half_energy
+  public :: fast_stresses, fast_commit, masing_springs, n_q, q_half_energy
   public :: n_commit_real, n_commit_int, c_strain, c_stress, c_max_pos, c_max_neg, c_ps, c_e0, &
             c_s0, c_hk, c_lo, c_hi, c_count, c_dir
 
@@ -20,6 +23,8 @@ module iem_masing_fast
   integer, parameter :: c_strain = 1, c_stress = 2, c_max_pos = 3, c_max_neg = 4, c_ps = 5, &
                         c_e0 = 6, c_s0 = 7, c_hk = 8, c_lo = 9, c_hi = 10, n_commit_real = 10
   integer, parameter :: c_count = 1, c_dir = 2, n_commit_int = 2
+  !> Springs per block of masing_springs (its work arrays stay in L1 cache).
+  integer, parameter :: block = 128
 
 contains
 
@@ -168,4 +173,125 @@ contains
       ni(k, c_dir) = merge(int(mr, ip), dk, moved > 0.0_wp)
     end do
   end subroutine fast_commit
+
+  !> Stresses s of n springs with Emax = 1 (constants p(i, :) from masing_constants) at the
+  !> strains e, each reached monotonically from its committed state (e_c .. e_max_neg, stack
+  !> depth D), and that state's strain and stress e_was, s_was; with accept, the state moved
+  !> to e. Bit for bit masing_trial / masing_commit of each spring: the springs whose move
+  !> ends on the curve it starts on (their current one, or the branch a reversal starts) are
+  !> evaluated and committed in branch-free loops over a block of springs, the others (a
+  !> branch reaches its aim, an overflow retrace its start) take the scalar state machine.
+  pure subroutine masing_springs(n, depth, e, p, accept, e_c, s_c, dir, count, e_rev, s_rev, &
+      e_max_pos, e_max_neg, s, e_was, s_was)
+    integer, intent(in) :: n, depth
+    real(wp), intent(in) :: e(n)
+    !> Constants of spring i in p(i, :) (rows past n unused).
+    real(wp), intent(in), contiguous :: p(:, :)
+    logical, intent(in) :: accept
+    real(wp), intent(inout) :: e_c(n), s_c(n)
+    integer(ip), intent(inout) :: dir(n), count(n)
+    real(wp), intent(inout) :: e_rev(depth, n), s_rev(depth, n), e_max_pos(n), e_max_neg(n)
+    real(wp), intent(out) :: s(n), e_was(n), s_was(n)
+    ! per spring of a block: the level reached and the direction of its move when fast (0:
+    ! not fast, or no move), and what is left to do (0 nothing, 1 store the reversal pushed,
+    ! 2 the scalar state machine)
+    integer(ip) :: level(block), move(block)
+    integer :: todo(block)
+    integer :: b, nb, k, i
+    integer(ip) :: lev, m, n0, d0, push, fast, short
+    logical :: moved
+    real(wp) :: t, e0, s0, aim, d, x, r, y, ek, ec, sc, et, st, eb, pp, pn, pb, mp, mn
+    real(wp) :: mirror, half, on_branch
+    do b = 0, n - 1, block
+      nb = min(block, n - b)
+      ! the first pass of masing_walk's loop, without branches: the level reached, the
+      ! direction of the move, whether the committed point is pushed as a reversal, and
+      ! whether the move ends on the curve it starts on, with the stress there
+      do k = 1, nb
+        i = b + k
+        ! every operand read once, unconditionally (the top of the stack, R_n and R_(n-1),
+        ! read as R_1 when there is none, and then not used)
+        ek = e(i)
+        ec = e_c(i)
+        sc = s_c(i)
+        n0 = count(i)
+        d0 = dir(i)
+        et = e_rev(max(n0, 1_ip), i)
+        st = s_rev(max(n0, 1_ip), i)
+        eb = e_rev(max(n0 - 1_ip, 1_ip), i)
+        pp = p(i, k_pos)
+        pn = p(i, k_neg)
+        pb = p(i, k_branch)
+        mp = p(i, k_mirror_pos)
+        mn = p(i, k_mirror_neg)
+        ! every comparison and every operation is done unconditionally, the conditions are
+        ! integers 0 / 1 and merge selects between values, so that the loop has no branch
+        m = merge(1_ip, 0_ip, ek > ec) - merge(1_ip, 0_ip, ek < ec)
+        push = merge(1_ip, 0_ip, d0 /= 0 .and. m == -d0 .and. n0 < depth)
+        lev = n0 + push
+        ! start, aim and direction of the branch of that level (masing_walk's level_params):
+        ! R_(lev-1) for lev >= 2, the mirror of the start for lev = 1
+        e0 = merge(ec, et, push == 1)
+        s0 = merge(sc, st, push == 1)
+        mirror = -e0*merge(mp, mn, e0 >= 0.0_wp)
+        aim = merge(merge(et, eb, push == 1), mirror, lev >= 2)
+        d = merge(merge(1.0_wp, -1.0_wp, aim > e0), merge(-1.0_wp, 1.0_wp, e0 > 0.0_wp), &
+                  lev >= 2)
+        ! on it at e: forward short of its aim, or backward (overflow retrace) short of its
+        ! start; an unchanged strain is fast, a NaN is not (masing_commit stores it)
+        short = merge(merge(1_ip, 0_ip, d*(ek - aim) < 0.0_wp), &
+                      merge(1_ip, 0_ip, d*(ek - e0) > 0.0_wp), real(m, wp) == d)
+        fast = max(merge(1_ip, 0_ip, ek == ec), &
+                   abs(m)*max(merge(1_ip, 0_ip, lev == 0), short))
+        ! the skeleton's and the branches' hyperbolas are one function of (x, strength)
+        half = 0.5_wp*(ek - e0)
+        x = merge(ek, half, lev == 0)
+        r = merge(merge(pp, pn, ek >= 0.0_wp), pb, lev == 0)
+        y = x/(1.0_wp + abs(x)/r)
+        on_branch = s0 + 2.0_wp*y
+        s(i) = merge(sc, merge(y, on_branch, lev == 0), m == 0)
+        e_was(i) = ec
+        s_was(i) = sc
+        level(k) = lev
+        move(k) = m*fast
+        ! left to do: a pushed reversal to store (accepted), or the state machine
+        todo(k) = merge(push*abs(m)*merge(1, 0, accept), 2, fast == 1)
+      end do
+      if (accept) then
+        ! what masing_commit does for a fast move (nothing for an unchanged strain)
+        do k = 1, nb
+          i = b + k
+          moved = move(k) /= 0
+          count(i) = merge(level(k), count(i), moved)
+          dir(i) = merge(move(k), dir(i), moved)
+          e_c(i) = merge(e(i), e_c(i), moved)
+          s_c(i) = merge(s(i), s_c(i), moved)
+          e_max_pos(i) = merge(max(e_max_pos(i), e(i)), e_max_pos(i), moved)
+          e_max_neg(i) = merge(min(e_max_neg(i), e(i)), e_max_neg(i), moved)
+        end do
+        ! and the reversals it pushed (count(i) is now the level of the new branch)
+!GCC$ novector
+        do k = 1, nb
+          if (todo(k) /= 1) cycle
+          i = b + k
+          e_rev(count(i), i) = e_was(i)
+          s_rev(count(i), i) = s_was(i)
+        end do
+      end if
+      ! the other springs take the state machine
+      do k = 1, nb
+        if (todo(k) /= 2) cycle
+        i = b + k
+        if (accept) then
+          call masing_commit(e(i), 1.0_wp, p(i, k_pos), p(i, k_neg), e_c(i), s_c(i), dir(i), &
+                             count(i), e_rev(:, i), s_rev(:, i), e_max_pos(i), e_max_neg(i))
+          ! the committed stress is bit for bit the trial stress at the same strain
+          s(i) = s_c(i)
+        else
+          call masing_trial(e(i), 1.0_wp, p(i, k_pos), p(i, k_neg), e_c(i), s_c(i), dir(i), &
+                            count(i), e_rev(:, i), s_rev(:, i), s(i), t)
+        end if
+      end do
+    end do
+  end subroutine masing_springs
 end module iem_masing_fast

@@ -53,6 +53,9 @@ module iem_nonlinear_springs
     logical, allocatable :: ready(:)
     !> Number of cells whose curves are made.
     integer :: n_ready = 0
+    !> Whether the springs keep their curves (for runs with trial evaluations between commits;
+    !> a run that commits every evaluation reads the top of each stack instead).
+    logical :: curves = .true.
   contains
     procedure :: init => nonlinear_springs_init
     procedure :: set_law => nonlinear_springs_set_law
@@ -92,18 +95,22 @@ contains
   !> n_materials (default 1), set_law gives the others. Out of memory: noted in guard (the
   !> springs are then incomplete), or the program stops without one.
   subroutine nonlinear_springs_init(this, n_cells, er_pos, er_neg, coeffs, depth, guard, &
-                                    n_materials)
+                                    n_materials, curves)
     class(nonlinear_springs_t), intent(inout) :: this
     integer, intent(in) :: n_cells, depth
     real(wp), intent(in) :: er_pos(3), er_neg(3), coeffs(3)
     type(alloc_guard_t), intent(inout), optional :: guard
     integer, intent(in), optional :: n_materials
+    !> Keep the springs' curves (default: yes).
+    logical, intent(in), optional :: curves
     type(alloc_guard_t) :: g
     integer(ip) :: st
     integer :: ierr, nm, j, n
     real(wp) :: bytes
     nm = 1
     if (present(n_materials)) nm = n_materials
+    this%curves = .true.
+    if (present(curves)) this%curves = curves
     if (allocated(this%er_pos)) deallocate(this%er_pos, this%er_neg, this%c2, this%q)
     allocate(this%er_pos(3, nm), this%er_neg(3, nm), this%c2(3, nm), &
              this%q(springs_per_cell*chunk_cells, n_q, nm))
@@ -113,15 +120,18 @@ contains
                         [0.0_wp, 0.0_wp, 0.0_wp])
     end do
     call this%set_law(1, er_pos, er_neg, coeffs)
-    bytes = real(springs_per_cell, wp)*n_cells*(104.0_wp + 16.0_wp*depth)
+    bytes = real(springs_per_cell, wp)*n_cells*(merge(96.0_wp, 48.0_wp, this%curves) + &
+                                                16.0_wp*depth)
     call this%state%init(int(springs_per_cell*n_cells, ip), int(depth, ip), st)
     call g%note(int(st), 'the nonlinear springs of the rank', bytes)
     if (allocated(this%work)) deallocate(this%work, this%lo, this%hi, this%e0, this%s0, &
                                          this%hk, this%ps, this%ready)
     if (.not. g%failed) then
       n = springs_per_cell*n_cells
-      allocate(this%work(n), this%lo(n), this%hi(n), this%e0(n), this%s0(n), this%hk(n), &
-               this%ps(n), this%ready(n_cells), stat=ierr)
+      if (.not. this%curves) n = 0
+      allocate(this%work(springs_per_cell*n_cells), this%lo(n), this%hi(n), this%e0(n), &
+               this%s0(n), this%hk(n), this%ps(n), this%ready(merge(n_cells, 0, this%curves)), &
+               stat=ierr)
       call g%note(ierr, 'the nonlinear springs of the rank', bytes)
     end if
     if (g%failed) then
