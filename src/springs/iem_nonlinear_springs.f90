@@ -25,8 +25,9 @@ module iem_nonlinear_springs
   !> springs at corners 1..4 (SW, SE, NE, NW), shear springs at corners 1..4.
   integer, parameter :: springs_per_cell = 12
   integer, parameter :: spring_kind_edge = 1, spring_kind_poisson = 2, spring_kind_shear = 3
-  !> Cells of a chunk of the force kernel (iem_cell_laws' chunk): the rows of the table q.
-  integer, parameter :: chunk_cells = 64
+  !> Cells of a chunk of the force kernel (iem_cell_laws' chunk): the rows of the table q;
+  !> stress and commit take at most max_springs springs at a time.
+  integer, parameter :: chunk_cells = 64, max_springs = springs_per_cell*chunk_cells
 
   !> The nonlinear springs of the local cells of one rank.
   type :: nonlinear_springs_t
@@ -208,7 +209,9 @@ contains
     real(wp), intent(out) :: s(n), mv(n)
     integer, intent(out) :: n_slow
     real(wp) :: tan
-    integer :: list(n), k, i, m
+    ! (fixed sizes: no allocation in the time loop)
+    integer :: list(max_springs), k, i, m
+    if (n > max_springs) error stop 'nonlinear_springs_stress: more than max_springs springs'
     associate(st => this%state, j => i0 + 1, l => i0 + n)
       call fast_stresses(n, e, p, size(p, 1), 0, st%strain(j:l), st%stress(j:l), this%ps(j:l), &
                          this%e0(j:l), this%s0(j:l), this%hk(j:l), this%lo(j:l), this%hi(j:l), &
@@ -240,9 +243,10 @@ contains
     ! a block of springs: small enough for its values to stay in the nearest cache between
     ! the loops; the kinds of the moves and the new values
     integer, parameter :: block = 128
-    real(wp) :: mv(n), room(block), nr(block, n_commit_real), ec, sc, dw
+    real(wp) :: mv(max_springs), room(block), nr(block, n_commit_real), ec, sc, dw
     integer(ip) :: ni(block, n_commit_int)
-    integer :: list(n), k, i, m, n_slow, n_off, b, nb
+    integer :: list(max_springs), k, i, m, n_slow, n_off, b, nb
+    if (n > max_springs) error stop 'nonlinear_springs_commit: more than max_springs springs'
     associate(st => this%state)
       do b = 0, n - 1, block
         nb = min(block, n - b)
