@@ -22,7 +22,8 @@ contains
   !> .false.; then en = 0) the work done on the cell's springs up to this state (trapezoidal
   !> increments from the committed state). The chunk's springs go through
   !> iem_nonlinear_springs' stress and commit (vectorised loops for the springs that stay on
-  !> their curve, the state machine for the others).
+  !> their curve, the state machine for the others), or, for springs that keep no curves
+  !> (velocity Verlet), through masing_springs (chunk_springs).
   pure subroutine nonlinear_law(nl, c_first, m, ep, s, accept, g, t, en, mat, energies)
     type(nonlinear_springs_t), intent(inout) :: nl
     integer, intent(in) :: c_first, m
@@ -69,7 +70,6 @@ contains
       t(c, 3) = nl%c2(3, mc)*psi(k + 11)
       t(c, 4) = nl%c2(3, mc)*psi(k + 12)
     end do
-
   end subroutine nonlinear_law
 
   !> The springs of nonlinear_law's chunk (spring k = 12 (c - 1) + j: spring j of cell c,
