@@ -15,15 +15,15 @@ module iem_memory
 
   !> Bytes of the arrays every run holds, per local node or cell (the values behind the
   !> estimate; docs/benchmarks.md has the measured totals).
-  real(wp), parameter, public :: lattice_node_bytes = 24.0_wp  ! global id (int64), x, y
+  real(wp), parameter, public :: lattice_node_bytes = 16.0_wp  ! global id (int64), i, j
   real(wp), parameter, public :: lattice_cell_bytes = 29.0_wp  ! 4 corners, id, material, open edges
   real(wp), parameter, public :: model_node_bytes = 24.0_wp    ! lumped mass, summed forces (2)
+  !> Velocity Verlet with 4 values a node sums the forces into its rates array: no forces.
+  real(wp), parameter :: verlet_forces_bytes = 16.0_wp
   !> One (2, n) copy of u or v while a frame is written.
   real(wp), parameter, public :: frame_node_bytes = 16.0_wp
   !> Dynamic relaxation's work arrays (ten (2, n) and one (4, n)).
   real(wp), parameter, public :: relax_node_bytes = 192.0_wp
-  !> Velocity Verlet's copy of the last good state (the NaN guard).
-  real(wp), parameter, public :: verlet_snap_bytes = 32.0_wp
   !> Decomposition, on every rank, per node of its share: the rank's cell list (int64 a
   !> cell), its node map (8), and for a body cut by shapes or an image the strip and window
   !> maps and the bisection's points (about 32).
@@ -78,9 +78,12 @@ contains
     case ('static')
       state = 8.0_wp*(ns + (ns - 2.0_wp)) + relax_node_bytes
     case ('verlet')
-      state = 8.0_wp*(ns + (ns - 2.0_wp)) + verlet_snap_bytes
+      state = 8.0_wp*(ns + (ns - 2.0_wp))
+      if (mc%n_state == 4) state = state - verlet_forces_bytes
     case default
-      state = 8.0_wp*(3.0_wp*ns + (ns - 2.0_wp))
+      ! (fused RK4, 4 values a node, keeps no rates array)
+      state = 8.0_wp*3.0_wp*ns
+      if (mc%n_state /= 4) state = state + 8.0_wp*(ns - 2.0_wp)
     end select
     ! resident through the run, per local node (cells converted to nodes)
     per_node = lattice_node_bytes + model_node_bytes + state + lattice_cell_bytes*cells_per_node

@@ -1,7 +1,7 @@
 !> One rank's part of the explicit lattice: owned nodes first (ascending global number), halo
 !> nodes after (grouped by owning rank), and the cells touching owned nodes (ascending global
 !> number), each with its corner nodes, material and open edges. The time loop reads only the
-!> cell-to-node table and the materials; numbers and coordinates serve set-up and output.
+!> cell-to-node table and the materials; numbers and grid indices serve set-up and output.
 module iem_local_lattice
   use, intrinsic :: iso_fortran_env, only: int8
   use iem_kinds, only: wp, ip, i8
@@ -12,9 +12,11 @@ module iem_local_lattice
   !> Local lattice of one rank.
   type :: local_lattice_t
     integer :: n_owned = 0, n_local = 0, n_cells = 0
-    !> Global 0-based number of each local node and its reference coordinates (2, n_local).
+    !> Global 0-based number of each local node and its grid indices (i, j) (2, n_local):
+    !> its reference coordinates are (i lx, j ly) (node_xy), with the grid's cell sizes.
     integer(i8), allocatable :: gid(:)
-    real(wp), allocatable :: xy(:, :)
+    integer, allocatable :: ij(:, :)
+    real(wp) :: lx = 0.0_wp, ly = 0.0_wp
     !> Local corner nodes of each local cell, counter-clockwise from lower left.
     integer(ip), allocatable :: cell_nodes(:, :)
     !> Global 0-based number of each local cell, its material (1..), and its open edges: bit
@@ -29,6 +31,7 @@ module iem_local_lattice
     !> Whether the lattice has more than one material (the kernel then reads cell_mat).
     logical :: mixed = .false.
   contains
+    procedure :: node_xy => local_lattice_node_xy
     procedure :: cell_counted => local_lattice_cell_counted
     procedure :: n_counted => local_lattice_n_counted
     procedure :: edge_open => local_lattice_edge_open
@@ -36,6 +39,14 @@ module iem_local_lattice
   end type local_lattice_t
 
 contains
+
+  !> Reference coordinates (x, y) of local node l.
+  pure function local_lattice_node_xy(this, l) result(xy)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: l
+    real(wp) :: xy(2)
+    xy = [this%ij(1, l)*this%lx, this%ij(2, l)*this%ly]
+  end function local_lattice_node_xy
 
   !> True for the cells this rank counts in global sums and writes: those whose first corner
   !> it owns (each cell is counted by exactly one rank).
@@ -62,7 +73,7 @@ contains
   subroutine local_lattice_free(this)
     class(local_lattice_t), intent(inout) :: this
     if (allocated(this%gid)) deallocate(this%gid)
-    if (allocated(this%xy)) deallocate(this%xy)
+    if (allocated(this%ij)) deallocate(this%ij)
     if (allocated(this%cell_nodes)) deallocate(this%cell_nodes)
     if (allocated(this%cell_gid)) deallocate(this%cell_gid)
     if (allocated(this%cell_mat)) deallocate(this%cell_mat)

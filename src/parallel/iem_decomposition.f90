@@ -196,12 +196,12 @@ contains
       end do
     end do
     shapes = size(body%shapes) > 0
-    allocate(keys(n_halo), lat%gid(n_owned + n_halo), lat%xy(2, n_owned + n_halo), &
+    allocate(keys(n_halo), lat%gid(n_owned + n_halo), lat%ij(2, n_owned + n_halo), &
              own(n_owned + n_halo), lat%cell_gid(n_cells), lat%cell_nodes(4, n_cells), &
              lat%cell_mat(n_cells), lat%cell_open(n_cells), stat=ierr)
     if (ierr == 0 .and. shapes) allocate(lat%cell_src(n_cells), lat%side_src(4, n_cells), &
                                          stat=ierr)
-    call guard%note(ierr, 'the lattice of the rank', 44.0_wp*(n_owned + n_halo) + &
+    call guard%note(ierr, 'the lattice of the rank', 36.0_wp*(n_owned + n_halo) + &
                     34.0_wp*n_cells)
     if (guard%failed) return
     l = 0
@@ -210,7 +210,7 @@ contains
         if (nid(i, j) < 0) cycle
         l = l + 1
         lat%gid(l) = nid(i, j)
-        lat%xy(:, l) = [i*body%grid%lx, j*body%grid%ly]
+        lat%ij(:, l) = [i, j]
         own(l) = int(me, ip)
       end do
     end do
@@ -235,11 +235,13 @@ contains
         if (lmap(i, j) /= -1) cycle
         k = find_key(keys, int(rcb%owner(i, j), i8)*nn + nid(i, j))
         lmap(i, j) = int(n_owned + k, ip)
-        lat%xy(:, n_owned + k) = [i*body%grid%lx, j*body%grid%ly]
+        lat%ij(:, n_owned + k) = [i, j]
       end do
     end do
     lat%n_owned = n_owned
     lat%n_local = n_owned + n_halo
+    lat%lx = body%grid%lx
+    lat%ly = body%grid%ly
     lat%n_cells = n_cells
     lat%mixed = body%n_materials > 1
     k = 0

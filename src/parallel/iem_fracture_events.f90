@@ -65,11 +65,10 @@ contains
         if (q <= 4) then
           a = lat%cell_nodes(q, c)
           b = lat%cell_nodes(mod(q, 4) + 1, c)
-          this%loc_r(:, this%n_loc) = [tf, 0.5_wp*(lat%xy(1, a) + lat%xy(1, b)), &
-                                       0.5_wp*(lat%xy(2, a) + lat%xy(2, b))]
+          this%loc_r(:, this%n_loc) = [tf, 0.5_wp*(lat%node_xy(a) + lat%node_xy(b))]
         else
           a = lat%cell_nodes(q - 4, c)
-          this%loc_r(:, this%n_loc) = [tf, lat%xy(1, a), lat%xy(2, a)]
+          this%loc_r(:, this%n_loc) = [tf, lat%node_xy(a)]
         end if
         this%loc_i(:, this%n_loc) = [lat%cell_gid(c), int(q - 1, i8), &
           int(failure_kind(fr%laws(lat%cell_mat(c)), fr%kappa(:, c), q), i8)]

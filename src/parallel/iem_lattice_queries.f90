@@ -22,13 +22,13 @@ contains
     type(MPI_Comm), intent(in) :: comm
     real(wp), intent(in) :: x, y
     integer :: l, i, j
-    real(wp) :: dl(2)
+    real(wp) :: dl(2), xl(2), d
     integer(i8) :: mine(1)
     i = min(max(nint(x/grid%lx), 0), grid%nx)
     j = min(max(nint(y/grid%ly), 0), grid%ny)
     mine = huge(1_i8)
     do l = 1, lat%n_owned
-      if (nint(lat%xy(1, l)/grid%lx) == i .and. nint(lat%xy(2, l)/grid%ly) == j) &
+      if (lat%ij(1, l) == i .and. lat%ij(2, l) == j) &
         mine = lat%gid(l)
     end do
     call MPI_Allreduce(MPI_IN_PLACE, mine, 1, MPI_INTEGER8, MPI_MIN, comm)
@@ -37,10 +37,10 @@ contains
     ! the grid node is not in the body: the nearest node, ties to the lowest number (MINLOC)
     dl = [huge(1.0_wp), huge(1.0_wp)]
     do l = 1, lat%n_owned
-      associate(d => (lat%xy(1, l) - x)**2 + (lat%xy(2, l) - y)**2)
-        if (d < dl(1) .or. (d == dl(1) .and. real(lat%gid(l), wp) < dl(2))) &
-          dl = [d, real(lat%gid(l), wp)]
-      end associate
+      xl = lat%node_xy(l)
+      d = (xl(1) - x)**2 + (xl(2) - y)**2
+      if (d < dl(1) .or. (d == dl(1) .and. real(lat%gid(l), wp) < dl(2))) &
+        dl = [d, real(lat%gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, dl, 1, MPI_2DOUBLE_PRECISION, MPI_MINLOC, comm)
     best = int(dl(2), i8)
@@ -75,7 +75,7 @@ contains
     integer :: l
     xy = 0.0_wp
     do l = 1, lat%n_owned
-      if (lat%gid(l) == g) xy = lat%xy(:, l)
+      if (lat%gid(l) == g) xy = lat%node_xy(l)
     end do
     call MPI_Allreduce(MPI_IN_PLACE, xy, 2, MPI_DOUBLE_PRECISION, MPI_SUM, comm)
   end function node_place
@@ -92,14 +92,12 @@ contains
     integer, intent(out) :: mat
     integer :: i, j, c
     integer(i8) :: v(2)
-    real(wp) :: xy(2)
     i = min(max(int(x/grid%lx), 0), grid%nx - 1)
     j = min(max(int(y/grid%ly), 0), grid%ny - 1)
     v = -1
     do c = 1, lat%n_cells
       if (.not. lat%cell_counted(c)) cycle
-      xy = lat%xy(:, lat%cell_nodes(1, c))
-      if (nint(xy(1)/grid%lx) == i .and. nint(xy(2)/grid%ly) == j) &
+      if (lat%ij(1, lat%cell_nodes(1, c)) == i .and. lat%ij(2, lat%cell_nodes(1, c)) == j) &
         v = [lat%cell_gid(c), int(lat%cell_mat(c), i8)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, v, 2, MPI_INTEGER8, MPI_MAX, comm)

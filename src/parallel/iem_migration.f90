@@ -57,8 +57,7 @@ contains
     ! the new owner of every node of the old lattice
     allocate(owner(lat%n_local))
     do l = 1, lat%n_local
-      owner(l) = int(bis%owner(nint(lat%xy(1, l)/body%grid%lx), &
-                               nint(lat%xy(2, l)/body%grid%ly)), ip)
+      owner(l) = int(bis%owner(lat%ij(1, l), lat%ij(2, l)), ip)
     end do
     call migrate(lat, lat2, owner, reg, comm, stat, msg)
     if (stat /= 0) return

@@ -55,8 +55,8 @@ contains
       if (.not. lat%cell_counted(c)) cycle
       do k = 1, n_listed
         if (lat%cell_gid(c) == listed(k)) then
-          piece_xy(:, k) = 0.5_wp*(lat%xy(:, lat%cell_nodes(1, c)) + &
-                                   lat%xy(:, lat%cell_nodes(3, c)))
+          piece_xy(:, k) = 0.5_wp*(lat%node_xy(lat%cell_nodes(1, c)) + &
+                                   lat%node_xy(lat%cell_nodes(3, c)))
         end if
       end do
     end do

@@ -7,12 +7,13 @@
 !> used by the first part of the step it prepares for dt; with the powers st%p_ext1,
 !> st%p_damp1 when prepare evaluated them); step advances y to t + dt and adds the
 !> step's local external work and damping dissipation to w_ext, w_damp. An integrator that
-!> rejects non-finite states (rejects_nonfinite) leaves y at the state of t when a step is not
-!> accepted, with the rejected state in st%ynew; the ranks' agreement may complete later, in
+!> is not accepted (every integrator rejects a step whose new state is not finite) says so in
+!> settle, the same on every rank; the ranks' agreement may complete later, in
 !> settle (the driver settles before it reads a state: after prepare, before a checkpoint or a
-!> repartition). One that updates y in place always accepts, and the guards keep a copy of
-!> the last good state for it. Accepted states commit the
-!> springs' history. One polymorphic call a step: nothing is dispatched per node or cell.
+!> repartition); one that updates y in place (velocity Verlet) keeps the values that a
+!> non-finite update would overwrite, and rejected turns what is left into the last good
+!> state. Accepted states commit the springs' history. One polymorphic call a step: nothing is
+!> dispatched per node or cell.
 module iem_integrator
   use mpi_f08, only: MPI_Comm
   use iem_kinds, only: wp
@@ -35,7 +36,7 @@ module iem_integrator
     procedure(integrator_stable_dt_i), deferred :: stable_dt
     procedure(integrator_undamped_dt_i), deferred :: undamped_dt
     procedure(integrator_flag_i), deferred :: work_arrays
-    procedure(integrator_flag_i), deferred :: rejects_nonfinite
+    procedure(integrator_rejected_i), deferred :: rejected
     procedure(integrator_prepare_i), deferred :: prepare
     procedure(integrator_step_i), deferred :: step
     procedure(integrator_resume_i), deferred :: resume
@@ -97,6 +98,20 @@ module iem_integrator
       real(wp), intent(inout) :: w_ext, w_damp
       logical, intent(out) :: accepted
     end subroutine integrator_step_i
+
+    !> After settle found the last step not accepted: leave in st%y (owned columns 1..n) the
+    !> last good state for the guard to write, back = 1 when it is the state of the step before
+    !> the rejected one (RK4), 0 when it is the rejected step's own displacements (velocity
+    !> Verlet: its velocities are those of the half step before, as note says); first_bad is
+    !> this rank's first owned node with a non-finite value of the rejected step (0: none).
+    subroutine integrator_rejected_i(this, st, n, back, first_bad, note)
+      import :: integrator_t, state_t
+      class(integrator_t), intent(inout) :: this
+      type(state_t), intent(inout) :: st
+      integer, intent(in) :: n
+      integer, intent(out) :: back, first_bad
+      character(len=:), allocatable, intent(out) :: note
+    end subroutine integrator_rejected_i
 
     !> After a checkpoint was loaded at time t: whatever the integrator must redo so that the
     !> model's energies are those of the loaded state before the first step's sample.

@@ -67,7 +67,12 @@ module iem_model
     real(wp), allocatable :: load_scale(:)
     !> Work array: cell forces summed per local node; all zero between evaluations (the
     !> pass that reads a node's force clears it, so no separate pass clears the array).
+    !> Without columns when sum_in_acc.
     real(wp), allocatable :: f(:, :)
+    !> Velocity Verlet with 4 values a node: the forces are summed into the rates array acc
+    !> (n_local columns, all zero on entry: its first kick clears what it reads) and the pass
+    !> turns them into the accelerations in place; no separate force array.
+    logical :: sum_in_acc = .false.
     !> The chunks of the local cell list for the force kernel (iem_cell_kernel's cell_chunks).
     integer, allocatable :: plan(:, :)
     !> The interior and boundary chunks, for evaluations that overlap the halo exchange.
@@ -94,10 +99,10 @@ module iem_model
     !> with mass damping, else empty), the power of each loaded node's loads and of each
     !> prescribed dof's reaction.
     real(wp), allocatable :: en_cell(:), pw_cell(:), pw_node(:), pe_slot(:), pr_bc(:)
-    !> f_int - f_ext of the prescribed dofs of each owned node at the last committed
-    !> evaluation (0 at free dofs): the reactions less the inertia of the prescribed motion.
-    !> Moved and checkpointed with the node (an integrator's resume evaluates without commit).
-    real(wp), allocatable :: rbc(:, :)
+    !> f_int - f_ext of each prescribed dof at the last committed evaluation: the reactions
+    !> less the inertia of the prescribed motion. Moved and checkpointed with the node, as a
+    !> node field 'reaction' of width 2 (an integrator's resume evaluates without commit).
+    real(wp), allocatable :: r_bc(:)
     !> External work and damping dissipation of this rank since the start: exact sums of the
     !> weighted terms of every evaluation the integrator counts (add_work).
     type(exact_sum_t) :: w_ext_acc, w_damp_acc
@@ -124,9 +129,11 @@ module iem_model
     !> imposed accelerations of the prescribed dofs): stage 1 at y writes ynew and the next
     !> stage state ynext; stages 2 and 3 at the stage state y add to ynew and turn y into the
     !> next stage state from y0, the state at the start of the step; stage 4 adds to ynew and
-    !> sums it into stage%total. With kick (velocity Verlet), v += kick a follows in the pass.
+    !> sums it into stage%total. With kick (velocity Verlet), v += kick a follows in the pass
+    !> where the new velocities are finite, and first_bad is the first owned node where they
+    !> are not (0: none; iem_node_pass's accelerations).
     module subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit, record, stage, &
-                                 y0, ynew, ynext, kick, halo, vote, vote_all)
+                                 y0, ynew, ynext, kick, halo, vote, vote_all, first_bad)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       real(wp), intent(inout), contiguous :: y(:, :)
@@ -149,6 +156,7 @@ module iem_model
       !> waits for; when vote_all comes back .false. the pass is skipped (f is cleared).
       type(MPI_Request), intent(inout), optional :: vote
       logical, intent(inout), optional, asynchronous :: vote_all
+      integer, intent(out), optional :: first_bad
     end subroutine model_rate
   end interface
 
@@ -165,7 +173,7 @@ contains
     type(local_lattice_t), intent(in) :: lat
     integer(i8), intent(out) :: n_selected(:)
     type(alloc_guard_t), intent(inout), optional :: guard
-    integer :: l, q, b, n, c, ld, ierr, mt, nm, nd, na
+    integer :: l, q, b, n, c, ld, ierr, mt, nm, nd, na, nf
     integer, allocatable :: cnt(:, :)
     logical, allocatable :: taken(:, :), mask(:)
     real(wp), allocatable :: weight(:), mcell(:)
@@ -199,6 +207,8 @@ contains
       this%beta = capped_beta(cfg%damping%ratio, 2.0_wp*pi*cfg%damping%frequency, this%omega_cap)
       this%n_state = 6
     end if
+    this%sum_in_acc = cfg%run%analysis /= 'static' .and. cfg%run%integrator == 'verlet' .and. &
+                      this%n_state == 4
     this%nonlinear = any(cfg%materials(:)%nonlinear)
     if (this%nonlinear) then
       ! materials without nonlinear springs keep theirs on the elastic line (a reference
@@ -247,17 +257,18 @@ contains
       if (size(body%cracks) > 0) then
         allocate(centres(2, lat%n_cells))
         do c = 1, lat%n_cells
-          centres(:, c) = 0.25_wp*(lat%xy(:, lat%cell_nodes(1, c)) + &
-                          lat%xy(:, lat%cell_nodes(2, c)) + lat%xy(:, lat%cell_nodes(3, c)) + &
-                          lat%xy(:, lat%cell_nodes(4, c)))
+          centres(:, c) = 0.25_wp*(lat%node_xy(lat%cell_nodes(1, c)) + &
+                          lat%node_xy(lat%cell_nodes(2, c)) + lat%node_xy(lat%cell_nodes(3, c)) + &
+                          lat%node_xy(lat%cell_nodes(4, c)))
         end do
         call this%fr%precut(body%cracks, centres)
       end if
     end if
-    allocate(this%mass(lat%n_owned), cnt(nm, lat%n_owned), this%f(2, lat%n_local), &
+    nf = lat%n_local
+    if (this%sum_in_acc) nf = 0
+    allocate(this%mass(lat%n_owned), cnt(nm, lat%n_owned), this%f(2, nf), &
              taken(2, lat%n_owned), mask(lat%n_owned), weight(lat%n_owned), stat=ierr)
-    call g%note(ierr, 'the model of the rank', (33.0_wp + 4*nm)*lat%n_owned + &
-                16.0_wp*lat%n_local)
+    call g%note(ierr, 'the model of the rank', (33.0_wp + 4*nm)*lat%n_owned + 16.0_wp*nf)
     if (g%failed) then
       call g%pass(guard)
       return
@@ -370,9 +381,9 @@ contains
     if (this%alpha > 0.0_wp) na = lat%n_owned
     allocate(this%en_cell(lat%n_cells), this%pw_cell(nd), this%pw_node(na), &
              this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), &
-             this%rbc(2, lat%n_owned), stat=ierr)
+             this%r_bc(size(this%bc_node)), stat=ierr)
     call g%note(ierr, 'the energy terms of the rank', 8.0_wp*(lat%n_cells + nd) + &
-                8.0_wp*(2*lat%n_owned + na))
+                8.0_wp*(na + 2*size(this%bc_node)))
     if (g%failed) then
       call g%pass(guard)
       return
@@ -382,7 +393,7 @@ contains
     this%pw_node = 0.0_wp
     this%pe_slot = 0.0_wp
     this%pr_bc = 0.0_wp
-    this%rbc = 0.0_wp
+    this%r_bc = 0.0_wp
     call this%w_ext_acc%reset()
     call this%w_damp_acc%reset()
   end subroutine model_init
@@ -502,7 +513,7 @@ contains
       comp = this%bc_comp(n)
       b = this%bc_id(n)
       if (t >= this%bc_release(b)) cycle
-      r = this%rbc(comp, l)
+      r = this%r_bc(n)
       if (inertia) r = this%mass(l)*(this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t) + &
                        this%alpha*y(2 + comp, l)) + r
       call sums(2*(series(b) - 1) + comp)%add(r)

@@ -4,6 +4,7 @@
 submodule (iem_model) iem_model_rate
   use mpi_f08, only: MPI_Wait, MPI_STATUS_IGNORE, MPI_F_sync_reg
   use iem_timers, only: timer_switch, t_force, t_halo, t_update
+  use iem_node_pass, only: accelerations_in_place
   implicit none
 
 contains
@@ -36,129 +37,157 @@ contains
       deallocate(this%pw_node)
       allocate(this%pw_node(lat%n_owned), source=0.0_wp)
     end if
-    ! f holds zeros here (the node passes below clear what they read)
-    if (.not. present(halo)) then
-      call cells(this%plan)
-    else if (.not. this%split%active) then
-      call halo_part(1)
-      call cells(this%plan)
+    ! the cells' forces are summed into model%f, or (sum_in_acc) into acc itself
+    if (this%sum_in_acc) then
+      call evaluate(acc)
     else
-      ! the interior cells while the halo values travel, then the boundary cells; the nodes
-      ! of D get their cells' forces summed in cell order; so does the damping power
-      call halo_part(2)
-      call cells(this%split%plan_in, this%split%at_in)
-      call halo_part(3)
-      call cells(this%split%plan_bd, this%split%at_bd)
-      call this%split%sum_side(this%f)
-      p_damp = 0.0_wp
-      if (this%beta > 0.0_wp) then
-        do c = 1, lat%n_cells
-          if (lat%cell_nodes(1, c) <= lat%n_owned) p_damp = p_damp + this%pw_cell(c)
-        end do
-      end if
-    end if
-    ! external loads: rebuilt only when a time function has changed
-    changed = .false.
-    do ld = 1, size(this%load_tf)
-      r = tf_value(this%load_tf(ld), t)
-      if (r /= this%load_scale(ld)) changed = .true.
-      this%load_scale(ld) = r
-    end do
-    if (changed) then
-      this%fext = 0.0_wp
-      do n = 1, size(this%load_node)
-        s = this%load_slot(n)
-        this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
-      end do
-    end if
-    ! the cell forces of the prescribed dofs, for the reactions; the halo nodes' forces are
-    ! not used
-    do n = 1, size(this%bc_node)
-      this%f_bc(n) = this%f(this%bc_comp(n), this%bc_node(n))
-    end do
-    this%f(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
-    ! powers at the evaluated state (before a fused RK4 pass moves y on): of the loads, of
-    ! the support reactions (which need the imposed accelerations), of mass damping
-    p_ext = 0.0_wp
-    do s = 1, size(this%ext_node)
-      l = this%ext_node(s)
-      this%pe_slot(s) = this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
-      p_ext = p_ext + this%pe_slot(s)
-    end do
-    do n = 1, size(this%bc_node)
-      l = this%bc_node(n)
-      comp = this%bc_comp(n)
-      b = this%bc_id(n)
-      this%pr_bc(n) = 0.0_wp
-      if (t >= this%bc_release(b)) cycle
-      a_imp = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
-      if (keep) then
-        this%rbc(comp, l) = this%f_bc(n)
-        if (this%bc_slot(n) > 0) this%rbc(comp, l) = this%rbc(comp, l) - &
-                                                      this%fext(comp, this%bc_slot(n))
-      end if
-      if (y(2 + comp, l) /= 0.0_wp) then
-        r = this%mass(l)*(a_imp + this%alpha*y(2 + comp, l)) + this%f_bc(n)
-        if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
-        this%pr_bc(n) = r*y(2 + comp, l)
-        p_ext = p_ext + this%pr_bc(n)
-      end if
-    end do
-    if (this%alpha > 0.0_wp) then
-      do l = 1, lat%n_owned
-        this%pw_node(l) = this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
-        p_damp = p_damp + this%pw_node(l)
-      end do
-    end if
-    ! the loads act as negative cell forces; then the pass over the owned nodes, which clears
-    ! f: accelerations, or an RK4 stage's update
-    do s = 1, size(this%ext_node)
-      l = this%ext_node(s)
-      this%f(:, l) = this%f(:, l) - this%fext(:, s)
-    end do
-    ! a pending agreement on the state the pass is about to overwrite (RK4's last step)
-    if (present(vote) .and. present(vote_all)) then
-      call timer_switch(t_force, t_halo, timed)
-      call MPI_Wait(vote, MPI_STATUS_IGNORE)
-      call MPI_F_sync_reg(vote_all)
-      if (timed) call timer_switch(t_halo, t_force)
-      if (.not. vote_all) then
-        this%f = 0.0_wp
-        return
-      end if
-    end if
-    ! the pass over the nodes counts as the state updates (when the caller times the force)
-    call timer_switch(t_force, t_update, timed)
-    if (present(stage)) then
-      associate(n_o => lat%n_owned)
-        select case (stage%stage)
-        case (1)
-          call rk4_first_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y, this%f, ynew, &
-                              ynext)
-        case (2, 3)
-          call rk4_mid_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y0, this%f, ynew, y)
-        case default
-          call rk4_last_pass(n_o, this%alpha, this%mass, stage%wdt, y, this%f, ynew, stage%total)
-        end select
-      end associate
-    else
-      call accelerations(lat%n_owned, this%alpha, this%mass, y, this%f, acc, kick)
-    end if
-    if (timed) call timer_switch(t_update, t_force)
-    ! prescribed dofs: the imposed accelerations
-    do n = 1, size(this%bc_node)
-      b = this%bc_id(n)
-      if (t >= this%bc_release(b)) cycle
-      comp = this%bc_comp(n)
-      acc(comp, this%bc_node(n)) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
-    end do
-    ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
-    if (this%omega_cap > 0.0_wp) then
-      do l = 1, lat%n_owned
-        acc(3:4, l) = this%omega_cap*(y(3:4, l) - y(5:6, l))
-      end do
+      call evaluate(this%f)
     end if
   contains
+
+    !> The evaluation with the cell forces summed into fs (all zero on entry): the cells, the
+    !> loads and reactions, the powers and the pass over the owned nodes, which clears fs or
+    !> (sum_in_acc, fs being acc) leaves the accelerations in it. With sum_in_acc, acc itself is
+    !> referenced only as fs.
+    subroutine evaluate(fs)
+      real(wp), intent(inout), contiguous :: fs(:, :)
+      ! f holds zeros here (the node passes below clear what they read)
+      if (.not. present(halo)) then
+        call cells(fs, this%plan)
+      else if (.not. this%split%active) then
+        call halo_part(1)
+        call cells(fs, this%plan)
+      else
+        ! the interior cells while the halo values travel, then the boundary cells; the nodes
+        ! of D get their cells' forces summed in cell order; so does the damping power
+        call halo_part(2)
+        call cells(fs, this%split%plan_in, this%split%at_in)
+        call halo_part(3)
+        call cells(fs, this%split%plan_bd, this%split%at_bd)
+        call this%split%sum_side(fs)
+        p_damp = 0.0_wp
+        if (this%beta > 0.0_wp) then
+          do c = 1, lat%n_cells
+            if (lat%cell_nodes(1, c) <= lat%n_owned) p_damp = p_damp + this%pw_cell(c)
+          end do
+        end if
+      end if
+      ! external loads: rebuilt only when a time function has changed
+      changed = .false.
+      do ld = 1, size(this%load_tf)
+        r = tf_value(this%load_tf(ld), t)
+        if (r /= this%load_scale(ld)) changed = .true.
+        this%load_scale(ld) = r
+      end do
+      if (changed) then
+        this%fext = 0.0_wp
+        do n = 1, size(this%load_node)
+          s = this%load_slot(n)
+          this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+        end do
+      end if
+      ! the cell forces of the prescribed dofs, for the reactions; the halo nodes' forces are
+      ! not used
+      do n = 1, size(this%bc_node)
+        this%f_bc(n) = fs(this%bc_comp(n), this%bc_node(n))
+      end do
+      fs(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
+      ! powers at the evaluated state (before a fused RK4 pass moves y on): of the loads, of
+      ! the support reactions (which need the imposed accelerations), of mass damping
+      p_ext = 0.0_wp
+      do s = 1, size(this%ext_node)
+        l = this%ext_node(s)
+        this%pe_slot(s) = this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
+        p_ext = p_ext + this%pe_slot(s)
+      end do
+      do n = 1, size(this%bc_node)
+        l = this%bc_node(n)
+        comp = this%bc_comp(n)
+        b = this%bc_id(n)
+        this%pr_bc(n) = 0.0_wp
+        if (t >= this%bc_release(b)) cycle
+        a_imp = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
+        if (keep) then
+          this%r_bc(n) = this%f_bc(n)
+          if (this%bc_slot(n) > 0) this%r_bc(n) = this%r_bc(n) - this%fext(comp, this%bc_slot(n))
+        end if
+        if (y(2 + comp, l) /= 0.0_wp) then
+          r = this%mass(l)*(a_imp + this%alpha*y(2 + comp, l)) + this%f_bc(n)
+          if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
+          this%pr_bc(n) = r*y(2 + comp, l)
+          p_ext = p_ext + this%pr_bc(n)
+        end if
+      end do
+      if (this%alpha > 0.0_wp) then
+        do l = 1, lat%n_owned
+          this%pw_node(l) = this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
+          p_damp = p_damp + this%pw_node(l)
+        end do
+      end if
+      ! the loads act as negative cell forces; then the pass over the owned nodes, which clears
+      ! f: accelerations, or an RK4 stage's update
+      do s = 1, size(this%ext_node)
+        l = this%ext_node(s)
+        fs(:, l) = fs(:, l) - this%fext(:, s)
+      end do
+      ! a pending agreement on the state the pass is about to overwrite (RK4's last step)
+      if (present(vote) .and. present(vote_all)) then
+        call timer_switch(t_force, t_halo, timed)
+        call MPI_Wait(vote, MPI_STATUS_IGNORE)
+        call MPI_F_sync_reg(vote_all)
+        if (timed) call timer_switch(t_halo, t_force)
+        if (.not. vote_all) then
+          fs = 0.0_wp
+          if (present(first_bad)) first_bad = 0
+          return
+        end if
+      end if
+      ! the pass over the nodes counts as the state updates (when the caller times the force)
+      call timer_switch(t_force, t_update, timed)
+      if (present(stage)) then
+        if (present(first_bad)) first_bad = 0
+        associate(n_o => lat%n_owned)
+          select case (stage%stage)
+          case (1)
+            call rk4_first_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y, fs, ynew, &
+                                ynext)
+          case (2, 3)
+            call rk4_mid_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y0, fs, ynew, y)
+          case default
+            call rk4_last_pass(n_o, this%alpha, this%mass, stage%wdt, y, fs, ynew, stage%total)
+          end select
+        end associate
+      else
+        if (this%sum_in_acc) then
+          call accelerations_in_place(lat%n_owned, this%alpha, this%mass, y, fs, kick, first_bad)
+        else
+          call accelerations(lat%n_owned, this%alpha, this%mass, y, fs, acc, kick, first_bad)
+        end if
+      end if
+      if (timed) call timer_switch(t_update, t_force)
+      ! prescribed dofs: the imposed accelerations (not kept by a fused RK4 stage: acc unused;
+      ! with the forces summed in acc, they go where the pass left the accelerations; not
+      ! after a guarded kick that found non-finite velocities: the rates keep what it left)
+      if (present(first_bad)) then
+        if (first_bad /= 0) return
+      end if
+      do n = 1, size(this%bc_node)
+        b = this%bc_id(n)
+        if (t >= this%bc_release(b)) cycle
+        comp = this%bc_comp(n)
+        if (this%sum_in_acc) then
+          fs(comp, this%bc_node(n)) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
+        else if (size(acc, 2) > 0) then
+          acc(comp, this%bc_node(n)) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
+        end if
+      end do
+      ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
+      if (this%omega_cap > 0.0_wp) then
+        do l = 1, lat%n_owned
+          acc(3:4, l) = this%omega_cap*(y(3:4, l) - y(5:6, l))
+        end do
+      end if
+    end subroutine evaluate
 
     !> The halo exchange (1), its start (2) or its finish (3), timed as such.
     subroutine halo_part(part)
@@ -176,19 +205,21 @@ contains
       if (switched) call timer_switch(t_halo, t_force)
     end subroutine halo_part
 
-    !> The cell forces of the chunks of plan (with at, those of the split's routed chunks).
-    subroutine cells(plan, at)
+    !> The cell forces of the chunks of plan (with at, those of the split's routed chunks),
+    !> summed into fs.
+    subroutine cells(fs, plan, at)
+      real(wp), intent(inout), contiguous :: fs(:, :)
       integer, intent(in), contiguous :: plan(:, :)
       integer, intent(in), optional, contiguous :: at(:)
       if (this%nonlinear) then
         if (this%mixed) then
-          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
                            lat%cell_mat, this%en_cell(1:ne), this%pw_cell, plan=plan, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
                            side=this%split%side)
         else
-          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, this%nl, accept, &
                            cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, &
                            plan=plan, add=.true., rows=this%rows, route_at=at, &
@@ -196,27 +227,27 @@ contains
         end if
       else if (this%fracture) then
         if (this%mixed) then
-          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, commit=accept, ks=this%ks, &
                            cell_mat=lat%cell_mat, cell_energy=this%en_cell(1:ne), &
                            cell_power=this%pw_cell, fr=this%fr, time=t, plan=plan, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
                            side=this%split%side)
         else
-          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, commit=accept, &
                            cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, &
                            fr=this%fr, time=t, plan=plan, add=.true., rows=this%rows, &
                            route_at=at, route=this%split%route, side=this%split%side)
         end if
       else if (this%mixed) then
-        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                          this%energy, p_damp, this%n_state - 1, ks=this%ks, &
                          cell_mat=lat%cell_mat, cell_energy=this%en_cell(1:ne), &
                          cell_power=this%pw_cell, plan=plan, add=.true., rows=this%rows, &
                          route_at=at, route=this%split%route, side=this%split%side)
       else
-        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, this%f, &
+        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                          this%energy, p_damp, this%n_state - 1, cell_energy=this%en_cell(1:ne), &
                          cell_power=this%pw_cell, plan=plan, add=.true., rows=this%rows, &
                          route_at=at, route=this%split%route, side=this%split%side)

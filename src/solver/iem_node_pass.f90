@@ -8,7 +8,8 @@ module iem_node_pass
   use iem_kinds, only: wp
   implicit none
   private
-  public :: rk4_stage_t, accelerations, rk4_first_pass, rk4_mid_pass, rk4_last_pass, kick_drift
+  public :: rk4_stage_t, accelerations, guarded_kick, rk4_first_pass, rk4_mid_pass, rk4_last_pass
+  public :: kick_drift, accelerations_in_place
 
   !> An RK4 stage for the node pass: its number (1..4), w_s dt, the offset h of the next
   !> stage state, and after the last stage the sum of the new state's owned values (not
@@ -22,27 +23,44 @@ contains
 
   !> Accelerations acc(1:2, l) = -(f + alpha m v)/m of the owned nodes 1..n (velocities in
   !> y(3:4, :)), clearing f(:, 1:n); with kick, then the velocities' half kick v += kick a
-  !> (velocity Verlet's second kick, fused).
-  pure subroutine accelerations(n, alpha, mass, y, f, acc, kick)
+  !> (velocity Verlet's second kick, fused), guarded: at a node whose new velocities are not
+  !> both finite, acc(1:2) keeps the velocities before the kick instead of the accelerations
+  !> (so that they can be given back, iem_verlet's rejected); first_bad is the first such node
+  !> (0: none). Branch-free, so that the loop vectorises.
+  pure subroutine accelerations(n, alpha, mass, y, f, acc, kick, first_bad)
     integer, intent(in) :: n
     real(wp), intent(in) :: alpha, mass(:)
     real(wp), intent(inout), contiguous :: y(:, :)
     real(wp), intent(inout), contiguous :: f(:, :), acc(:, :)
     real(wp), intent(in), optional :: kick
-    real(wp) :: h
-    integer :: l
+    integer, intent(out), optional :: first_bad
+    real(wp) :: h, a1, a2, v1, v2, w1, w2
+    integer :: l, first
+    logical :: ok
     if (present(kick)) then
       h = kick
+      first = n + 1
       do l = 1, n
-        acc(1, l) = -(f(1, l) + alpha*mass(l)*y(3, l))/mass(l)
-        acc(2, l) = -(f(2, l) + alpha*mass(l)*y(4, l))/mass(l)
+        a1 = -(f(1, l) + alpha*mass(l)*y(3, l))/mass(l)
+        a2 = -(f(2, l) + alpha*mass(l)*y(4, l))/mass(l)
         f(1, l) = 0.0_wp
         f(2, l) = 0.0_wp
-        y(3, l) = y(3, l) + h*acc(1, l)
-        y(4, l) = y(4, l) + h*acc(2, l)
+        w1 = y(3, l)
+        w2 = y(4, l)
+        v1 = w1 + h*a1
+        v2 = w2 + h*a2
+        ! x - x is 0 for a finite x, NaN for an infinite or NaN one: one test for both
+        ok = (v1 - v1) + (v2 - v2) == 0.0_wp
+        acc(1, l) = merge(a1, w1, ok)
+        acc(2, l) = merge(a2, w2, ok)
+        y(3, l) = v1
+        y(4, l) = v2
+        first = min(first, merge(n + 1, l, ok))
       end do
+      if (present(first_bad)) first_bad = merge(first, 0, first <= n)
       return
     end if
+    if (present(first_bad)) first_bad = 0
     do l = 1, n
       acc(1, l) = -(f(1, l) + alpha*mass(l)*y(3, l))/mass(l)
       acc(2, l) = -(f(2, l) + alpha*mass(l)*y(4, l))/mass(l)
@@ -51,14 +69,97 @@ contains
     end do
   end subroutine accelerations
 
+  !> As accelerations, the accelerations written over the forces they come from:
+  !> fa(1:2, l) = -(fa + alpha m v)/m of the owned nodes 1..n (velocity Verlet with its forces
+  !> summed into its rates array); with kick, then v += kick a, guarded as in accelerations
+  !> (fa keeps the velocities before the kick where the new ones are not both finite).
+  pure subroutine accelerations_in_place(n, alpha, mass, y, fa, kick, first_bad)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: alpha, mass(:)
+    real(wp), intent(inout), contiguous :: y(:, :), fa(:, :)
+    real(wp), intent(in), optional :: kick
+    integer, intent(out), optional :: first_bad
+    real(wp) :: a1, a2, v1, v2, w1, w2
+    integer :: l, first
+    logical :: ok
+    if (.not. present(kick)) then
+      do l = 1, n
+        fa(1, l) = -(fa(1, l) + alpha*mass(l)*y(3, l))/mass(l)
+        fa(2, l) = -(fa(2, l) + alpha*mass(l)*y(4, l))/mass(l)
+      end do
+      if (present(first_bad)) first_bad = 0
+      return
+    end if
+    first = n + 1
+    do l = 1, n
+      w1 = y(3, l)
+      w2 = y(4, l)
+      a1 = -(fa(1, l) + alpha*mass(l)*w1)/mass(l)
+      a2 = -(fa(2, l) + alpha*mass(l)*w2)/mass(l)
+      v1 = w1 + kick*a1
+      v2 = w2 + kick*a2
+      ok = (v1 - v1) + (v2 - v2) == 0.0_wp
+      fa(1, l) = merge(a1, w1, ok)
+      fa(2, l) = merge(a2, w2, ok)
+      y(3, l) = v1
+      y(4, l) = v2
+      first = min(first, merge(n + 1, l, ok))
+    end do
+    if (present(first_bad)) first_bad = merge(first, 0, first <= n)
+  end subroutine accelerations_in_place
+
+  !> Velocity Verlet's second kick v += h a of the owned nodes 1..n (accelerations acc(1:2, :),
+  !> velocities y(3:4, :)), guarded as the fused pass of accelerations: at a node whose new
+  !> velocities are not both finite acc(1:2) keeps the velocities before the kick; first_bad
+  !> is the first such node (0: none).
+  pure subroutine guarded_kick(n, h, acc, y, first_bad)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: h
+    real(wp), intent(inout), contiguous :: acc(:, :), y(:, :)
+    integer, intent(out) :: first_bad
+    real(wp) :: v1, v2, w1, w2
+    integer :: l, first
+    logical :: ok
+    first = n + 1
+    do l = 1, n
+      w1 = y(3, l)
+      w2 = y(4, l)
+      v1 = w1 + h*acc(1, l)
+      v2 = w2 + h*acc(2, l)
+      ok = (v1 - v1) + (v2 - v2) == 0.0_wp
+      acc(1, l) = merge(acc(1, l), w1, ok)
+      acc(2, l) = merge(acc(2, l), w2, ok)
+      y(3, l) = v1
+      y(4, l) = v2
+      first = min(first, merge(n + 1, l, ok))
+    end do
+    first_bad = merge(first, 0, first <= n)
+  end subroutine guarded_kick
+
   !> Velocity Verlet's first kick and drift of the owned nodes 1..n in one pass:
-  !> v += h acc, then u += dt v (prescribed velocities are the caller's to mend).
-  pure subroutine kick_drift(n, h, dt, acc, y)
+  !> v += h acc, then u += dt v (prescribed velocities are the caller's to mend); with clear,
+  !> acc(1:2, 1:n) is zeroed after it is read (the rates array then sums the next forces).
+  pure subroutine kick_drift(n, h, dt, acc, y, clear)
     integer, intent(in) :: n
     real(wp), intent(in) :: h, dt
-    real(wp), intent(in), contiguous :: acc(:, :)
+    real(wp), intent(inout), contiguous :: acc(:, :)
     real(wp), intent(inout), contiguous :: y(:, :)
+    logical, intent(in), optional :: clear
     integer :: l
+    logical :: zero
+    zero = .false.
+    if (present(clear)) zero = clear
+    if (zero) then
+      do l = 1, n
+        y(3, l) = y(3, l) + h*acc(1, l)
+        y(4, l) = y(4, l) + h*acc(2, l)
+        y(1, l) = y(1, l) + dt*y(3, l)
+        y(2, l) = y(2, l) + dt*y(4, l)
+        acc(1, l) = 0.0_wp
+        acc(2, l) = 0.0_wp
+      end do
+      return
+    end if
     do l = 1, n
       y(3, l) = y(3, l) + h*acc(1, l)
       y(4, l) = y(4, l) + h*acc(2, l)

@@ -198,7 +198,6 @@ contains
     this%warned = this%restart%warned /= 0
     this%last_sample = this%restart%last_sample
     this%last_frame_time = this%restart%last_frame_time
-    call keep_good_state(this, this%restart%step, this%restart%t)
     ! the integrator redoes what it needs of the loaded state (its resume, called next)
   end procedure load_checkpoint
 
@@ -222,7 +221,7 @@ contains
     ! the last step must stand on every rank before its state is written
     call this%integ%settle(this%st, ok)
     if (.not. ok) then
-      call stop_rejected(this, k - 1, t - this%dt, stat, msg)
+      call stop_rejected(this, k, t, stat, msg)
       return
     end if
     call write_checkpoint(this, k, t, sig, stat, msg)

@@ -39,7 +39,7 @@ module iem_rk4
     procedure :: stable_dt => rk4_dt
     procedure :: undamped_dt => rk4_undamped_dt
     procedure :: work_arrays => rk4_true
-    procedure :: rejects_nonfinite => rk4_true
+    procedure :: rejected => rk4_rejected
     procedure :: prepare => rk4_prepare
     procedure :: step => rk4_step
     procedure :: resume => rk4_resume
@@ -69,7 +69,7 @@ contains
     rk4_undamped_dt = rk4_imag_limit/omega_max
   end function rk4_undamped_dt
 
-  !> True: RK4 needs the stage arrays of the state, and rejects non-finite new states.
+  !> True: RK4 needs the stage arrays of the state.
   pure logical function rk4_true(this)
     class(rk4_t), intent(in) :: this
     rk4_true = .true.
@@ -152,6 +152,26 @@ contains
     end if
     accepted = this%all
   end subroutine rk4_settle
+
+  !> After a rejected step: y is already the state before it (back = 1); the first owned node
+  !> whose rejected state (st%ynew) holds a non-finite value.
+  subroutine rk4_rejected(this, st, n, back, first_bad, note)
+    class(rk4_t), intent(inout) :: this
+    type(state_t), intent(inout) :: st
+    integer, intent(in) :: n
+    integer, intent(out) :: back, first_bad
+    character(len=:), allocatable, intent(out) :: note
+    integer :: l
+    back = 1
+    note = ''
+    first_bad = 0
+    do l = 1, n
+      if (.not. all(ieee_is_finite(st%ynew(:, l)))) then
+        first_bad = l
+        exit
+      end if
+    end do
+  end subroutine rk4_rejected
 
   !> Nothing: prepare evaluates the rates of the loaded state at the first step.
   subroutine rk4_resume(this, model, lat, halo, st, t)

@@ -33,6 +33,9 @@ module iem_simulation
   implicit none
   private
   public :: simulation_t
+  ! (public so that the repartition submodule links against it: gfortran drops an unused
+  ! private module procedure)
+  public :: rate_columns
 
   !> One run: configuration, decomposition, model, state, output and the history buffer.
   type :: simulation_t
@@ -96,11 +99,7 @@ module iem_simulation
     real(wp) :: e0 = 0.0_wp, e_scale = 0.0_wp, last_balance = 0.0_wp
     real(wp) :: w_ext = 0.0_wp, w_damp = 0.0_wp
     logical :: output_open = .false.
-    !> Guards: the owned (u, v) at the last check that found every value finite, its step and
-    !> time; whether the energy warning has been given.
-    real(wp), allocatable :: snap(:, :)
-    integer(i8) :: snap_step = 0
-    real(wp) :: snap_time = 0.0_wp
+    !> Guards: whether the energy warning has been given.
     logical :: warned = .false.
     !> Restart: the checkpoint's header (step 0: a fresh run).
     type(checkpoint_header_t) :: restart
@@ -260,40 +259,19 @@ module iem_simulation
       character(len=:), allocatable, intent(out) :: msg
     end subroutine run_static
 
-    !> Allocate the guards' copy of the last good state: empty when the integrator rejects
-    !> non-finite steps itself. Failures go to guard.
-    module subroutine init_guards(this, guard)
-      type(simulation_t), intent(inout) :: this
-      type(alloc_guard_t), intent(inout) :: guard
-    end subroutine init_guards
-
-    !> Keep the state of step k as the last good one (only when the integrator updates the
-    !> state in place and cannot reject a step).
-    module subroutine keep_good_state(this, k, t)
-      type(simulation_t), intent(inout) :: this
-      integer(i8), intent(in) :: k
-      real(wp), intent(in) :: t
-    end subroutine keep_good_state
-
-    !> Guard at step k, for an integrator that updates the state in place: every owned value
-    !> finite (else stop with the last good frame), then keep the state as the last good one.
-    !> Nothing for one that rejects non-finite steps itself. Collective.
-    module subroutine check_state(this, k, t, stat, msg)
-      type(simulation_t), intent(inout) :: this
-      integer(i8), intent(in) :: k
-      real(wp), intent(in) :: t
-      integer, intent(out) :: stat
-      character(len=:), allocatable, intent(out) :: msg
-    end subroutine check_state
-
-    !> Stop on non-finite values in the state bad(:, owned nodes) of step k: name the first node
-    !> (lowest global index) holding one, its rank and position, and write the last good state
-    !> good(4, n_owned) of step k_good as a frame. Collective.
-    module subroutine stop_nonfinite(this, k, t, bad, good, k_good, t_good, stat, msg)
+    !> Stop on non-finite values at step k, first_bad being this rank's first owned node
+    !> holding one (0: none; none on any rank: the energies were not finite): name the first
+    !> node (lowest global index), its rank and position, and write the last good state
+    !> good(:, n_owned) (rows 1:2 u, 3:4 v) of step k_good as a frame, note added to what
+    !> the message says of it. Collective.
+    module subroutine stop_nonfinite(this, k, t, first_bad, good, k_good, t_good, note, stat, &
+                                     msg)
       type(simulation_t), intent(inout) :: this
       integer(i8), intent(in) :: k, k_good
       real(wp), intent(in) :: t, t_good
-      real(wp), intent(in) :: bad(:, :), good(:, :)
+      integer, intent(in) :: first_bad
+      real(wp), intent(in), contiguous :: good(:, :)
+      character(len=*), intent(in) :: note
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
     end subroutine stop_nonfinite
@@ -308,8 +286,9 @@ module iem_simulation
       character(len=:), allocatable, intent(out) :: msg
     end subroutine stop_diverged
 
-    !> Stop on the step from k that the integrator rejected (its new state, in st%ynew, is not
-    !> finite; y still holds that of step k, written as the last frame). Collective.
+    !> Stop on step k, which the integrator rejected (its new values are not finite somewhere;
+    !> the integrator's last good state, of step k - 1 or of step k itself, is written as the
+    !> last frame). Collective.
     module subroutine stop_rejected(this, k, t, stat, msg)
       type(simulation_t), intent(inout) :: this
       integer(i8), intent(in) :: k
@@ -377,8 +356,7 @@ contains
     end if
   end subroutine simulation_run
 
-  !> Allocate the state (with the work arrays the integrator needs) and the guards' copy,
-  !> all ranks agreeing; set the initial state. Only now, after the mesh output's temporaries
+  !> Allocate the state (with the work arrays the integrator needs), all ranks agreeing; set the initial state. Only now, after the mesh output's temporaries
   !> are gone, so that they do not add to the peak memory.
   subroutine allocate_state(this, stat, msg)
     type(simulation_t), intent(inout) :: this
@@ -389,13 +367,23 @@ contains
     work = .false.
     if (.not. this%static) work = this%integ%work_arrays()
     call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
-                      rk4_work=work, guard=guard)
-    if (.not. this%static) call init_guards(this, guard)
+                      rk4_work=work, guard=guard, n_rates=rate_columns(this, work))
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
     if (.not. this%static) call initial_velocity(this)
     call this%model%prescribe(this%st%y, 0.0_wp)
   end subroutine allocate_state
+
+  !> Columns of the state's rates array acc: none for RK4 with 4 values a node (its fused
+  !> passes never read it), every local node's when the model sums the forces into it
+  !> (velocity Verlet), else the owned nodes'.
+  pure integer function rate_columns(this, rk4_work) result(n)
+    type(simulation_t), intent(in) :: this
+    logical, intent(in) :: rk4_work
+    n = this%lat%n_owned
+    if (rk4_work .and. this%model%n_state == 4) n = 0
+    if (this%model%sum_in_acc) n = this%lat%n_local
+  end function rate_columns
 
   !> The time loop of a dynamic run, from step 0 or the checkpoint it continues from, to
   !> n_steps: at the top of each step a checkpoint when due, the integrator's rates, the
@@ -404,7 +392,7 @@ contains
     type(simulation_t), intent(inout) :: this
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer(i8) :: k, k_first, check_interval
+    integer(i8) :: k, k_first
     real(wp) :: t, t_prev, wall0, wall_last, next_report
     logical :: diverged, accepted, sampled
 
@@ -426,7 +414,6 @@ contains
       call log_info('continuing from '//trim(this%cfg%run%restart)//' at step '// &
                     itoa(k_first)//', t = '//rtoa(real(k_first, wp)*this%dt)//' s')
     end if
-    check_interval = int(this%cfg%run%check_interval, i8)
     do k = k_first, this%n_steps
       t = real(k, wp)*this%dt
       if (k > k_first) then
@@ -435,7 +422,7 @@ contains
         if (k == int(this%cfg%run%repartition_step, i8)) then
           call this%integ%settle(this%st, accepted)
           if (.not. accepted) then
-            call stop_rejected(this, k - 1, t - this%dt, stat, msg)
+            call stop_rejected(this, k, t, stat, msg)
             return
           end if
           call repartition_run(this, k, stat, msg)
@@ -450,12 +437,8 @@ contains
       ! the last step stands once every rank agrees (RK4 agrees behind prepare's exchange)
       call this%integ%settle(this%st, accepted)
       if (.not. accepted) then
-        call stop_rejected(this, k - 1, t - this%dt, stat, msg)
+        call stop_rejected(this, k, t, stat, msg)
         return
-      end if
-      if (mod(k, check_interval) == 0) then
-        call check_state(this, k, t, stat, msg)
-        if (stat /= 0) return
       end if
       if (sampled) then
         call record_sample(this, k, t, diverged)
@@ -484,7 +467,7 @@ contains
       call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
                            this%w_damp, accepted)
       if (.not. accepted) then
-        call stop_rejected(this, k, t, stat, msg)
+        call stop_rejected(this, k + 1, t + this%dt, stat, msg)
         return
       end if
       t_prev = t

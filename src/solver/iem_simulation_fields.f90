@@ -46,8 +46,7 @@ contains
   !> the springs' arrays, 12 springs a cell, are cell fields of width 12 or 12*depth) and
   !> whether a checkpoint holds it. op_register adds the fields (only the checkpointed ones
   !> when checkpoint); op_in and op_out copy the fields that reg holds in and out.
-  !> Not checkpointed: the NaN guard's last good state (a continued run takes it at the
-  !> step it continues from) and the cells' energies (the integrator's resume recomputes them).
+  !> Not checkpointed: the cells' energies (the integrator's resume recomputes them).
   subroutine each_field(this, reg, op, checkpoint, stat)
     type(simulation_t), intent(inout) :: this
     type(field_registry_t), intent(inout), target :: reg
@@ -59,8 +58,7 @@ contains
     ns = this%model%n_state
     call real_field('y', centre_node, ns, this%st%y, .true.)
     call real_field('acc', centre_node, ns - 2, this%st%acc, .true.)
-    call real_field('reaction', centre_node, 2, this%model%rbc, .true.)
-    if (allocated(this%snap)) call real_field('last_good', centre_node, 4, this%snap, .false.)
+    call reaction_field()
     call real_field('cell_energy', centre_cell, 1, this%model%en_cell, .false.)
     if (this%model%nonlinear) then
       depth = int(this%model%nl%state%depth)
@@ -84,6 +82,34 @@ contains
     end if
 
   contains
+
+    !> The reactions, kept per prescribed dof (model%r_bc), travel as the node field
+    !> 'reaction' of width 2 (f_int - f_ext of each prescribed component, 0 at free dofs): at
+    !> op_out the model's dofs are those of the lattice the registry was copied out to.
+    subroutine reaction_field()
+      real(wp), pointer, contiguous :: p(:)
+      integer :: id, q
+      if (stat /= 0) return
+      if (op == op_register) then
+        call reg%add('reaction', centre_node, kind_real, 2, id, stat)
+        return
+      end if
+      id = reg%find('reaction')
+      if (id == 0 .or. .not. allocated(this%model%r_bc)) return
+      p => reg%real_flat(id)
+      associate(m => this%model)
+        if (op == op_in) then
+          p = 0.0_wp
+          do q = 1, size(m%bc_node)
+            p(m%bc_comp(q) + 2*(m%bc_node(q) - 1)) = m%r_bc(q)
+          end do
+        else
+          do q = 1, size(m%bc_node)
+            m%r_bc(q) = p(m%bc_comp(q) + 2*(m%bc_node(q) - 1))
+          end do
+        end if
+      end associate
+    end subroutine reaction_field
 
     !> Register, copy in or copy out one real field whose run's array is a (rank 1 or 2; not
     !> referenced when registering, so it may be unallocated then).
@@ -112,6 +138,8 @@ contains
         end if
       rank (2)
         if (op == op_in) then
+          ! (an array without columns, fused RK4's rates: zeros in a checkpoint)
+          if (size(a) == 0) p = 0.0_wp
           p(1:size(a)) = reshape(a, [size(a)])
         else
           a = reshape(p(1:size(a)), shape(a))

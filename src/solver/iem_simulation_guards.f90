@@ -1,9 +1,9 @@
 !> Guards of a dynamic run: non-finite states and the energy balance, which stop the
-!> run naming where it diverged and writing the last good state as a frame. Which state is
-!> the last good one depends on the integrator: y itself when it rejects non-finite steps
-!> (RK4), else the copy kept here at every check (velocity Verlet).
+!> run naming where it diverged and writing the last good state as a frame. Every integrator
+!> rejects a step whose new values are not finite (on every rank) and says which state is the
+!> last good one (RK4: that of the step before; velocity Verlet: the rejected step's
+!> displacements with the velocities of the half step before them); no copy is kept here.
 submodule (iem_simulation) iem_simulation_guards
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_INTEGER8, MPI_MIN, MPI_2DOUBLE_PRECISION, MPI_MAXLOC
   use iem_logger, only: log_warn
   use iem_lattice_queries, only: node_place
@@ -12,57 +12,21 @@ submodule (iem_simulation) iem_simulation_guards
 contains
 
   !> Documented at its interface in iem_simulation.f90.
-  module procedure init_guards
-    integer :: ierr, n
-    n = merge(0, this%lat%n_owned, this%integ%rejects_nonfinite())
-    allocate(this%snap(4, n), stat=ierr)
-    call guard%note(ierr, 'the copy of the last good state', 32.0_wp*this%lat%n_owned)
-    if (ierr == 0) this%snap = 0.0_wp
-  end procedure init_guards
-
-  !> Documented at its interface in iem_simulation.f90.
-  module procedure keep_good_state
-    if (this%integ%rejects_nonfinite()) return
-    this%snap = this%st%y(1:4, 1:this%lat%n_owned)
-    this%snap_step = k
-    this%snap_time = t
-  end procedure keep_good_state
-
-  !> Documented at its interface in iem_simulation.f90.
-  module procedure check_state
-    integer :: n
-    logical :: finite
-    stat = 0
-    msg = ''
-    ! an integrator that rejects non-finite steps has checked every state it accepted
-    if (this%integ%rejects_nonfinite()) return
-    n = this%lat%n_owned
-    finite = all(ieee_is_finite(this%st%y(1:4, 1:n)))
-    call MPI_Allreduce(MPI_IN_PLACE, finite, 1, MPI_LOGICAL, MPI_LAND, this%comm)
-    if (.not. finite) then
-      call stop_nonfinite(this, k, t, this%st%y, this%snap, this%snap_step, this%snap_time, &
-                          stat, msg)
-      return
-    end if
-    call keep_good_state(this, k, t)
-  end procedure check_state
-
-  !> Documented at its interface in iem_simulation.f90.
   module procedure stop_diverged
-    if (this%integ%rejects_nonfinite()) then
-      ! only finite states were accepted: the energies overflowed
-      call stop_nonfinite(this, k, t, this%st%y, this%st%y(1:4, 1:this%lat%n_owned), k, t, &
-                          stat, msg)
-    else
-      call stop_nonfinite(this, k, t, this%st%y, this%snap, this%snap_step, this%snap_time, &
-                          stat, msg)
-    end if
+    integer :: n
+    ! every accepted state was finite: the energies overflowed; the state is the last good one
+    n = this%lat%n_owned
+    call stop_nonfinite(this, k, t, 0, this%st%y(:, 1:n), k, t, '', stat, msg)
   end procedure stop_diverged
 
   !> Documented at its interface in iem_simulation.f90.
   module procedure stop_rejected
-    call stop_nonfinite(this, k + 1, t + this%dt, this%st%ynew, &
-                        this%st%y(1:4, 1:this%lat%n_owned), k, t, stat, msg)
+    integer :: back, first_bad, n
+    character(len=:), allocatable :: note
+    n = this%lat%n_owned
+    call this%integ%rejected(this%st, n, back, first_bad, note)
+    call stop_nonfinite(this, k, t, first_bad, this%st%y(:, 1:n), k - back, &
+                        t - back*this%dt, note, stat, msg)
   end procedure stop_rejected
 
   !> Documented at its interface in iem_simulation.f90.
@@ -72,12 +36,7 @@ contains
     real(wp) :: xy(2), big(2)
     character(len=:), allocatable :: msg2
     mine = huge(1_i8)
-    do l = 1, this%lat%n_owned
-      if (.not. all(ieee_is_finite(bad(1:4, l)))) then
-        mine = this%lat%gid(l)
-        exit
-      end if
-    end do
+    if (first_bad > 0) mine = this%lat%gid(first_bad)
     call MPI_Allreduce(mine, first, 1, MPI_INTEGER8, MPI_MIN, this%comm)
     owner = -1
     if (mine == first) owner = this%rank
@@ -100,8 +59,8 @@ contains
     xy = node_place(this%lat, this%comm, int(big(2), i8))
     msg = msg//', with dt = '//rtoa(this%dt)//' s (stability limit '//rtoa(this%dt_limit)// &
           ' s); in the last good state (step '//itoa(k_good)//', written as the last '// &
-          'frame) the fastest node was '//itoa(int(big(2), i8))//' (x = '//rtoa(xy(1))// &
-          ', y = '//rtoa(xy(2))//' m, speed '//rtoa(big(1))//' m/s)'
+          'frame'//note//') the fastest node was '//itoa(int(big(2), i8))//' (x = '// &
+          rtoa(xy(1))//', y = '//rtoa(xy(2))//' m, speed '//rtoa(big(1))//' m/s)'
     call flush_history(this, stat2)
     call this%out%write_frame(k_good, t_good, good(1:2, :), good(3:4, :), stat2, msg2)
   end procedure stop_nonfinite

@@ -49,17 +49,13 @@ contains
     this%model = model_t()
     call this%model%init(this%cfg, this%body, this%lat, n_selected, guard)
     if (.not. guard%failed) call this%st%init(this%lat%n_owned, this%lat%n_local, ns, &
-                                               rk4_work=this%integ%work_arrays(), guard=guard)
+                                               rk4_work=this%integ%work_arrays(), guard=guard, &
+                                               n_rates=rate_columns(this, this%integ%work_arrays()))
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
     this%model%w_ext_acc = w_ext
     this%model%w_damp_acc = w_damp
-    ! copy the fields back into the new model and state (the guard's snapshot of owned nodes
-    ! takes the new count)
-    if (allocated(this%snap)) then
-      deallocate(this%snap)
-      allocate(this%snap(4, this%lat%n_owned))
-    end if
+    ! copy the fields back into the new model and state
     call state_from_registry(this, reg)
     call this%model%prescribe(this%st%y, real(k, wp)*this%dt)
     ! the halo columns of y are refreshed by the next force evaluation's exchange; Verlet's

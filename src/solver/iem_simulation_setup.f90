@@ -355,7 +355,7 @@ contains
     real(wp) :: xy(2)
     associate(ini => this%cfg%initial)
       do l = 1, this%lat%n_owned
-        xy = this%lat%xy(:, l) - ini%center
+        xy = this%lat%node_xy(l) - ini%center
         this%st%y(3:4, l) = ini%velocity + ini%angular_velocity*[-xy(2), xy(1)]
         if (this%model%n_state == 6) this%st%y(5:6, l) = this%st%y(3:4, l)
       end do

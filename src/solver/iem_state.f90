@@ -32,16 +32,20 @@ module iem_state
 contains
 
   !> Allocate the state for n_local nodes of which n_owned are owned, with n_state values a
-  !> node (default 4), all zero; rk4_work (default true) adds RK4's two work arrays. A failed
-  !> allocation is handed to guard (nothing allocated then); without guard it stops the program.
-  subroutine state_init(this, n_owned, n_local, n_state, rk4_work, guard)
+  !> node (default 4), all zero; rk4_work (default true) adds RK4's two work arrays; n_rates
+  !> (default n_owned) is the number of columns of acc: 0 for RK4 with 4 values a node (its
+  !> updates are fused into the evaluations' passes, which never read it), n_local for velocity
+  !> Verlet when the forces are summed into it (model_t's sum_in_acc). A failed allocation is
+  !> handed to guard (nothing allocated then); without guard it stops the program.
+  subroutine state_init(this, n_owned, n_local, n_state, rk4_work, guard, n_rates)
     class(state_t), intent(inout) :: this
     integer, intent(in) :: n_owned, n_local
     integer, intent(in), optional :: n_state
     logical, intent(in), optional :: rk4_work
     type(alloc_guard_t), intent(inout), optional :: guard
+    integer, intent(in), optional :: n_rates
     type(alloc_guard_t) :: g
-    integer :: ns, ierr
+    integer :: ns, ierr, na
     logical :: work
     ns = 4
     if (present(n_state)) ns = n_state
@@ -49,8 +53,10 @@ contains
     if (present(rk4_work)) work = rk4_work
     if (allocated(this%y)) deallocate(this%y, this%acc)
     if (allocated(this%ys)) deallocate(this%ys, this%ynew)
-    allocate(this%y(ns, n_local), this%acc(ns - 2, n_owned), stat=ierr)
-    call g%note(ierr, 'the state of the rank', 8.0_wp*ns*n_local + 8.0_wp*(ns - 2)*n_owned)
+    na = n_owned
+    if (present(n_rates)) na = n_rates
+    allocate(this%y(ns, n_local), this%acc(ns - 2, na), stat=ierr)
+    call g%note(ierr, 'the state of the rank', 8.0_wp*ns*n_local + 8.0_wp*(ns - 2)*na)
     if (work .and. .not. g%failed) then
       allocate(this%ys(ns, n_local), this%ynew(ns, n_local), stat=ierr)
       call g%note(ierr, 'the RK4 work arrays of the rank', 16.0_wp*ns*n_local)

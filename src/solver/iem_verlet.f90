@@ -1,7 +1,12 @@
 !> Velocity Verlet (kick-drift-kick) step of the lattice: one force evaluation a step, second
 !> order, symplectic when undamped; damping forces use the half-step velocity. verlet_t puts
-!> it behind iem_integrator's interface: it updates the state in place and accepts every step.
+!> it behind iem_integrator's interface: it updates the state in place, and a step whose new
+!> velocities are not finite somewhere is rejected on every rank, its last good state rebuilt
+!> from what the guarded kick left (no copy of the state is kept).
 module iem_verlet
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use mpi_f08, only: MPI_Request, MPI_Iallreduce, MPI_Wait, MPI_STATUS_IGNORE, MPI_LOGICAL, &
+                     MPI_LAND, MPI_F_sync_reg
   use iem_kinds, only: wp
   use iem_stable_dt, only: verlet_stable_dt
   use iem_integrator, only: integrator_t
@@ -10,20 +15,31 @@ module iem_verlet
   use iem_model, only: model_t
   use iem_state, only: state_t, state_rate
   use iem_timers, only: timer_start, timer_stop, t_force, t_update
-  use iem_node_pass, only: kick_drift
+  use iem_node_pass, only: kick_drift, guarded_kick
   implicit none
   private
   public :: verlet_t, verlet_step
 
   !> Velocity Verlet as an integrator_t: one force evaluation a step, whose rates carry over
-  !> to the next step; no stage arrays; every step accepted (the guards keep a copy).
+  !> to the next step; no stage arrays. The second kick of a step writes only finite
+  !> velocities; the ranks agree on the step with a non-blocking reduction that settle
+  !> completes at the top of the next step, before the state moves again.
   type, extends(integrator_t) :: verlet_t
+    !> The agreement on the last step (or on the rates of the start): pending, this rank's
+    !> verdict, every rank's, and the request.
+    logical :: pending = .false., mine = .true., all = .true.
+    type(MPI_Request) :: req
+    !> This rank's first owned node with a non-finite new value (0: none), and the half step
+    !> of the last kick (0: the rates of the start were evaluated, nothing was kicked).
+    integer :: first_bad = 0
+    real(wp) :: h = 0.0_wp
   contains
     procedure :: name => verlet_name
     procedure :: stable_dt => verlet_dt
     procedure :: undamped_dt => verlet_undamped_dt
     procedure :: work_arrays => verlet_false
-    procedure :: rejects_nonfinite => verlet_false
+    procedure :: rejected => verlet_rejected
+    procedure :: settle => verlet_settle
     procedure :: prepare => verlet_prepare
     procedure :: step => verlet_accept_step
     procedure :: resume => verlet_resume
@@ -52,14 +68,15 @@ contains
     verlet_undamped_dt = 2.0_wp/omega_max
   end function verlet_undamped_dt
 
-  !> False: Verlet needs no stage arrays, and updates the state in place.
+  !> False: Verlet needs no stage arrays (it updates the state in place).
   pure logical function verlet_false(this)
     class(verlet_t), intent(in) :: this
     verlet_false = .false.
   end function verlet_false
 
-  !> The rates at y(t): evaluated at the first step of the run only; later the previous step
-  !> has left them in st%acc (and a restart has loaded them from the checkpoint).
+  !> The rates at y(t): evaluated at the first step of the run only (and agreed on, like a
+  !> step: settle rejects them when not finite on some rank); later the previous step has left
+  !> them in st%acc (and a restart has loaded them from the checkpoint).
   subroutine verlet_prepare(this, model, lat, halo, st, t, dt, first)
     class(verlet_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
@@ -68,10 +85,22 @@ contains
     type(state_t), intent(inout) :: st
     real(wp), intent(in) :: t, dt
     logical, intent(in) :: first
-    if (first) call state_rate(model, lat, halo, st, t)
+    integer :: l
+    if (.not. first) return
+    call state_rate(model, lat, halo, st, t)
+    this%first_bad = 0
+    do l = 1, lat%n_owned
+      if (.not. all(ieee_is_finite(st%acc(:, l)))) then
+        this%first_bad = l
+        exit
+      end if
+    end do
+    this%h = 0.0_wp
+    call vote(this)
   end subroutine verlet_prepare
 
-  !> One velocity Verlet step (verlet_step); always accepted.
+  !> One velocity Verlet step (verlet_step); the ranks' agreement on it is started (settle
+  !> completes it; accepted is .true. until then).
   subroutine verlet_accept_step(this, model, lat, halo, st, t, dt, w_ext, w_damp, accepted)
     class(verlet_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
@@ -81,9 +110,67 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     logical, intent(out) :: accepted
-    call verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp)
+    call verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%first_bad)
+    this%h = 0.5_wp*dt
+    call vote(this)
     accepted = .true.
   end subroutine verlet_accept_step
+
+  !> Start the ranks' agreement on this rank's verdict (first_bad == 0); one still pending
+  !> (a caller that did not settle) is completed first, and a rejection it brings stands.
+  subroutine vote(this)
+    class(verlet_t), intent(inout) :: this
+    call complete(this)
+    this%mine = this%first_bad == 0 .and. this%all
+    call MPI_Iallreduce(this%mine, this%all, 1, MPI_LOGICAL, MPI_LAND, this%comm, this%req)
+    this%pending = .true.
+  end subroutine vote
+
+  !> Complete the ranks' agreement on the last step (at once if already complete): accepted
+  !> is .false. on every rank when some rank's new values were not finite.
+  subroutine verlet_settle(this, st, accepted)
+    class(verlet_t), intent(inout) :: this
+    type(state_t), intent(inout) :: st
+    logical, intent(out) :: accepted
+    call complete(this)
+    accepted = this%all
+  end subroutine verlet_settle
+
+  !> Wait for the pending agreement, if any.
+  subroutine complete(this)
+    class(verlet_t), intent(inout) :: this
+    if (.not. this%pending) return
+    call MPI_Wait(this%req, MPI_STATUS_IGNORE)
+    call MPI_F_sync_reg(this%all)
+    this%pending = .false.
+  end subroutine complete
+
+  !> After a rejected step: the last good state is the step's own displacements (finite: the
+  !> previous step's velocities were) with the velocities of the half step before it: v - h a
+  !> where the kick gave finite velocities (to the round-off of the kick), else the ones the
+  !> guarded kick kept in acc (exact); back = 0. After rejected rates of the start, y is the
+  !> initial state itself.
+  subroutine verlet_rejected(this, st, n, back, first_bad, note)
+    class(verlet_t), intent(inout) :: this
+    type(state_t), intent(inout) :: st
+    integer, intent(in) :: n
+    integer, intent(out) :: back, first_bad
+    character(len=:), allocatable, intent(out) :: note
+    integer :: l
+    back = 0
+    first_bad = this%first_bad
+    note = ''
+    if (this%h == 0.0_wp) return
+    note = ', its velocities those of the half step before it'
+    do l = 1, n
+      if (ieee_is_finite(st%y(3, l)) .and. ieee_is_finite(st%y(4, l))) then
+        st%y(3:4, l) = st%y(3:4, l) - this%h*st%acc(1:2, l)
+      else
+        st%y(3:4, l) = st%acc(1:2, l)
+      end if
+    end do
+    this%h = 0.0_wp
+  end subroutine verlet_rejected
 
   !> Verlet does not evaluate the rates at the step it starts from (they are in the
   !> checkpoint): one trial evaluation, into a scratch array and without commit, gives the
@@ -97,7 +184,8 @@ contains
     real(wp), intent(in) :: t
     real(wp), allocatable :: scratch(:, :)
     real(wp) :: p_ext, p_damp
-    allocate(scratch(size(st%acc, 1), lat%n_owned))
+    ! (zero: the model may sum the forces into it)
+    allocate(scratch(size(st%acc, 1), size(st%acc, 2)), source=0.0_wp)
     ! (not overlapped: model_rate's halo would count this untimed evaluation in the timers)
     call halo%exchange(st%y)
     call model%rate(lat, st%y, t, scratch, p_ext, p_damp, record=.true.)
@@ -106,16 +194,19 @@ contains
   !> Advance y from t to t + dt, given in st%acc the rates at (u(t), damping velocity of the
   !> previous half step) from state_rate or the previous call; leaves in st%acc the rates at
   !> t + dt. With capped damping the filter w relaxes exactly towards the half-step velocity.
-  !> Accumulates the local external work and damping dissipation of the step.
-  subroutine verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp)
+  !> Accumulates the local external work and damping dissipation of the step. The second
+  !> kick writes only finite velocities (iem_node_pass's guarded update): first_bad is the
+  !> first owned node where the new ones are not (0: none).
+  subroutine verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, first_bad)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
     type(state_t), intent(inout) :: st
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
+    integer, intent(out), optional :: first_bad
     real(wp) :: p_ext, p_damp, h, c, u_bc(size(model%bc_node))
-    integer :: l, n, q, c2
+    integer :: l, n, q, c2, bad
     logical :: fuse
 
     n = lat%n_owned
@@ -129,7 +220,7 @@ contains
       do q = 1, size(model%bc_node)
         u_bc(q) = st%y(model%bc_comp(q), model%bc_node(q))
       end do
-      call kick_drift(n, h, dt, st%acc, st%y)
+      call kick_drift(n, h, dt, st%acc, st%y, clear=model%sum_in_acc)
       call model%prescribe(st%y, t + h)
       do q = 1, size(model%bc_node)
         l = model%bc_node(q)
@@ -158,7 +249,7 @@ contains
     ! values a node the kick v(t + dt) is fused into the evaluation's pass over the nodes
     if (fuse) then
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., kick=h, &
-                      halo=halo)
+                      halo=halo, first_bad=bad)
     else
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., halo=halo)
     end if
@@ -169,12 +260,10 @@ contains
     w_damp = w_damp + dt*p_damp
     call model%add_work(lat, dt)
     ! kick: v(t + dt)
-    if (.not. fuse) then
-      do l = 1, n
-        st%y(3:4, l) = st%y(3:4, l) + h*st%acc(1:2, l)
-      end do
-    end if
-    call model%prescribe(st%y, t + dt)
+    if (.not. fuse) call guarded_kick(n, h, st%acc, st%y, bad)
+    if (present(first_bad)) first_bad = bad
+    ! (a rejected step keeps what the guarded kick left, for rejected)
+    if (bad == 0) call model%prescribe(st%y, t + dt)
     call timer_stop(t_update)
   end subroutine verlet_step
 end module iem_verlet
