@@ -356,8 +356,9 @@ contains
     end if
   end subroutine simulation_run
 
-  !> Allocate the state (with the work arrays the integrator needs), all ranks agreeing; set the initial state. Only now, after the mesh output's temporaries
-  !> are gone, so that they do not add to the peak memory.
+  !> Allocate the state (with the work arrays the integrator needs), all ranks agreeing; set
+  !> the initial state. Only now, after the mesh output's temporaries are gone, so that they do
+  !> not add to the peak memory.
   subroutine allocate_state(this, stat, msg)
     type(simulation_t), intent(inout) :: this
     integer, intent(out) :: stat
