@@ -133,12 +133,16 @@ module iem_h5_output
     end subroutine h5_output_write_mesh
 
     !> Adds the next frame group (u, v of the owned nodes) and appends to /frames/time, step.
-    module subroutine h5_output_write_frame(this, step, time, u, v, stat, msg)
+    !> u and v are rows u_row:u_row+1 and v_row:v_row+1 (default 1) of their arrays (n_owned
+    !> columns): a state y(:, 1:n_owned) is passed as it is, and each field is copied in turn
+    !> into one buffer of (2, n_owned) for the write (one field's copy at a time, not two).
+    module subroutine h5_output_write_frame(this, step, time, u, v, stat, msg, u_row, v_row)
       class(h5_output_t), intent(inout) :: this
       integer(i8), intent(in) :: step
       real(wp), intent(in) :: time, u(:, :), v(:, :)
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
+      integer, intent(in), optional :: u_row, v_row
     end subroutine h5_output_write_frame
 
     !> Appends n samples to /history collectively; every rank passes the same data.

@@ -26,9 +26,13 @@ contains
     real(wp), allocatable :: grown(:)
     integer, allocatable :: grown_fields(:)
     integer(HID_T) :: gid, fspace, mspace
-    integer :: ierr
+    integer :: ierr, ru, rv
     logical :: shapes_ok
 
+    ru = 1
+    if (present(u_row)) ru = u_row
+    rv = 1
+    if (present(v_row)) rv = v_row
     stat = 0
     msg = ''
     if (.not. this%is_open) then
@@ -38,8 +42,9 @@ contains
     end if
     ! A rank with wrong shapes writes nothing but still takes part in every collective call,
     ! so that the other ranks do not hang; it reports the error afterwards.
-    shapes_ok = size(u, 1) == 2 .and. size(u, 2, kind=i8) == this%n_owned .and. &
-      size(v, 1) == 2 .and. size(v, 2, kind=i8) == this%n_owned
+    shapes_ok = ru >= 1 .and. size(u, 1) >= ru + 1 .and. &
+      size(u, 2, kind=i8) == this%n_owned .and. &
+      rv >= 1 .and. size(v, 1) >= rv + 1 .and. size(v, 2, kind=i8) == this%n_owned
     name = xdmf_frame_name(this%n_frames)
     where = '/frames/'//name
     gid = -1
@@ -51,8 +56,9 @@ contains
       call put_attr(this%path, gid, where, 'time', stat, msg, rval=time)
       call put_attr(this%path, gid, where, 'step', stat, msg, lval=step)
       call write_node_field(this, gid, where//'/displacement', 'displacement', u, shapes_ok, &
-        stat, msg)
-      call write_node_field(this, gid, where//'/velocity', 'velocity', v, shapes_ok, stat, msg)
+        stat, msg, ru)
+      call write_node_field(this, gid, where//'/velocity', 'velocity', v, shapes_ok, stat, msg, &
+        rv)
       call write_xyz_view(this, gid, where, 'displacement', stat, msg)
       call write_xyz_view(this, gid, where, 'velocity', stat, msg)
       if (stat /= 0) exit work
@@ -105,14 +111,17 @@ contains
     call write_sidecar(this, stat, msg)
     if (.not. shapes_ok .and. stat /= 1) then
       stat = 1
-      msg = 'iem_h5_output: write_frame: u and v must be (2, '//itoa(this%n_owned)// &
-        '), the owned nodes of this rank; nothing written from it to '//where//' in '//this%path
+      msg = 'iem_h5_output: write_frame: u and v must have rows u_row:u_row+1 and v_row:'// &
+        'v_row+1 and '//itoa(this%n_owned)//' columns, the owned nodes of this rank; nothing '// &
+        'written from it to '//where//' in '//this%path
     end if
   end procedure h5_output_write_frame
 
   !> Creates the node dataset `name` (2, n_nodes) in group `gid` and writes this rank's nodes
-  !> from field(2, n_owned); if not shapes_ok, writes nothing but takes part. No-op if stat /= 0.
-  subroutine write_node_field(this, gid, where, name, field, shapes_ok, stat, msg)
+  !> from rows row:row+1 of field(:, n_owned) (a contiguous copy of them when field has other
+  !> rows: a strided selection in memory costs HDF5 and MPI-IO more than the copy, measured);
+  !> if not shapes_ok, writes nothing but takes part. No-op if stat /= 0.
+  subroutine write_node_field(this, gid, where, name, field, shapes_ok, stat, msg, row)
     class(h5_output_t), intent(in) :: this
     integer(HID_T), intent(in) :: gid
     character(len=*), intent(in) :: where, name
@@ -120,6 +129,8 @@ contains
     logical, intent(in) :: shapes_ok
     integer, intent(inout) :: stat
     character(len=:), allocatable, intent(inout) :: msg
+    integer, intent(in) :: row
+    real(wp), allocatable :: buf(:, :)
     real(wp) :: dummy(2, 1)
     integer(HID_T) :: did, fspace, mspace
     integer :: ierr
@@ -131,9 +142,14 @@ contains
     work: block
       call h5dcreate_f(gid, name, H5T_IEEE_F64LE, this%node_fspace, did, ierr, this%dcpl_id)
       if (failed(this%path, ierr, 'h5dcreate_f', where, stat, msg)) exit work
-      if (shapes_ok) then
+      if (shapes_ok .and. size(field, 1) == 2) then
         call h5dwrite_f(did, this%real_mtype, field, shape(field, HSIZE_T), ierr, &
           this%node_mspace, this%node_fspace, this%xfer_id)
+      else if (shapes_ok) then
+        buf = field(row:row + 1, :)
+        call h5dwrite_f(did, this%real_mtype, buf, shape(buf, HSIZE_T), ierr, &
+          this%node_mspace, this%node_fspace, this%xfer_id)
+        deallocate(buf)
       else
         call h5scopy_f(this%node_fspace, fspace, ierr)
         if (failed(this%path, ierr, 'h5scopy_f', where, stat, msg)) exit work

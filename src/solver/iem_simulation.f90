@@ -24,6 +24,7 @@ module iem_simulation
   use iem_signals, only: install_signal_handlers, signal_caught
   use iem_h5_output, only: h5_output_t
   use iem_logger, only: log_info
+  use iem_heap, only: heap_release
   use iem_timers, only: timer_start, timer_stop, t_output
   use iem_strings, only: itoa, rtoa
   use iem_alloc_guard, only: alloc_guard_t
@@ -345,8 +346,12 @@ contains
     ! a dynamic run checkpoints and stops on SIGTERM/SIGUSR1 from here on (a signal during
     ! the set-up is acted on at the first check of the time loop)
     if (.not. this%static) call install_signal_handlers()
+    ! the set-up's freed pages go back to the system before the mesh output's buffers, and
+    ! those before the state takes its own (else they stay resident and add to the peak)
+    call heap_release()
     call open_output(this, stat, msg)
     if (stat /= 0) return
+    call heap_release()
     call allocate_state(this, stat, msg)
     if (stat /= 0) return
     if (this%static) then

@@ -62,7 +62,7 @@ contains
           'frame'//note//') the fastest node was '//itoa(int(big(2), i8))//' (x = '// &
           rtoa(xy(1))//', y = '//rtoa(xy(2))//' m, speed '//rtoa(big(1))//' m/s)'
     call flush_history(this, stat2)
-    call this%out%write_frame(k_good, t_good, good(1:2, :), good(3:4, :), stat2, msg2)
+    call this%out%write_frame(k_good, t_good, good, good, stat2, msg2, u_row=1, v_row=3)
   end procedure stop_nonfinite
 
   !> Documented at its interface in iem_simulation.f90.

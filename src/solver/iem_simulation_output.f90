@@ -310,9 +310,9 @@ contains
     character(len=:), allocatable :: msg
     integer :: n
     n = this%lat%n_owned
-    ! the sections are copied to contiguous temporaries at output time only (a strided
-    ! selection in memory costs HDF5 and MPI-IO more than the copy: measured)
-    call this%out%write_frame(k, t, this%st%y(1:2, 1:n), this%st%y(3:4, 1:n), stat, msg)
+    ! rows 1:2 (u) and 3:4 (v) of the owned columns: the writer copies one field at a time
+    call this%out%write_frame(k, t, this%st%y(:, 1:n), this%st%y(:, 1:n), stat, msg, u_row=1, &
+                              v_row=3)
     this%last_frame_time = t
     if (stat /= 0) return
     if (this%model%nonlinear) then
