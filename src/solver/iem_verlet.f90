@@ -21,9 +21,10 @@ module iem_verlet
   public :: verlet_t, verlet_step
 
   !> Velocity Verlet as an integrator_t: one force evaluation a step, whose rates carry over
-  !> to the next step; no stage arrays. The second kick of a step writes only finite
-  !> velocities; the ranks agree on the step with a non-blocking reduction that settle
-  !> completes at the top of the next step, before the state moves again.
+  !> to the next step; no stage arrays. The second kick of a step is guarded (where its new
+  !> velocities are not finite the rates array keeps the half-step ones); the ranks agree on
+  !> the step with a non-blocking reduction that settle completes at the top of the next step,
+  !> before the state moves again.
   type, extends(integrator_t) :: verlet_t
     !> The agreement on the last step (or on the rates of the start): pending, this rank's
     !> verdict, every rank's, and the request.
@@ -195,8 +196,9 @@ contains
   !> previous half step) from state_rate or the previous call; leaves in st%acc the rates at
   !> t + dt. With capped damping the filter w relaxes exactly towards the half-step velocity.
   !> Accumulates the local external work and damping dissipation of the step. The second
-  !> kick writes only finite velocities (iem_node_pass's guarded update): first_bad is the
-  !> first owned node where the new ones are not (0: none).
+  !> kick is guarded (iem_node_pass's kick_node: where the new velocities are not finite the
+  !> rates keep the half-step ones): first_bad is the first owned node where they are not (0:
+  !> none), and then the step's prescribed values are left as the kick left them.
   subroutine verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, first_bad)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
