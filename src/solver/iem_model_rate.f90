@@ -51,7 +51,7 @@ contains
     !> referenced only as fs.
     subroutine evaluate(fs)
       real(wp), intent(inout), contiguous :: fs(:, :)
-      ! f holds zeros here (the node passes below clear what they read)
+      ! fs holds zeros here (the node passes below clear what they read)
       if (.not. present(halo)) then
         call cells(fs, this%plan)
       else if (.not. this%split%active) then
