@@ -113,6 +113,7 @@ module iem_model
     procedure :: add_work => model_add_work
     procedure :: energy_sums => model_energy_sums
     procedure :: reaction_sums => model_reaction_sums
+    procedure :: rate_columns => model_rate_columns
   end type model_t
 
   interface
@@ -129,9 +130,10 @@ module iem_model
     !> imposed accelerations of the prescribed dofs): stage 1 at y writes ynew and the next
     !> stage state ynext; stages 2 and 3 at the stage state y add to ynew and turn y into the
     !> next stage state from y0, the state at the start of the step; stage 4 adds to ynew and
-    !> sums it into stage%total. With kick (velocity Verlet), v += kick a follows in the pass
-    !> where the new velocities are finite, and first_bad is the first owned node where they
-    !> are not (0: none; iem_node_pass's accelerations).
+    !> sums it into stage%total. With kick (velocity Verlet), the guarded v += kick a follows in
+    !> the pass (where the new velocities are not finite acc keeps the half-step ones), and
+    !> first_bad is the first owned node where they are not (0: none; iem_node_pass's
+    !> kick_node); the prescribed dofs' rates are then left as the pass left them.
     module subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit, record, stage, &
                                  y0, ynew, ynext, kick, halo, vote, vote_all, first_bad)
       class(model_t), intent(inout) :: this
@@ -520,4 +522,15 @@ contains
     end do
   end subroutine model_reaction_sums
 
+  !> Columns the state's rates array acc needs for this model: none for RK4 with 4 values a
+  !> node (rk4_work; its fused passes never read it), every local node's when the forces are
+  !> summed into it (sum_in_acc, velocity Verlet), else the owned nodes'.
+  pure integer function model_rate_columns(this, lat, rk4_work) result(n)
+    class(model_t), intent(in) :: this
+    type(local_lattice_t), intent(in) :: lat
+    logical, intent(in) :: rk4_work
+    n = lat%n_owned
+    if (rk4_work .and. this%n_state == 4) n = 0
+    if (this%sum_in_acc) n = lat%n_local
+  end function model_rate_columns
 end module iem_model

@@ -34,9 +34,6 @@ module iem_simulation
   implicit none
   private
   public :: simulation_t
-  ! (public so that the repartition submodule links against it: gfortran drops an unused
-  ! private module procedure)
-  public :: rate_columns
 
   !> One run: configuration, decomposition, model, state, output and the history buffer.
   type :: simulation_t
@@ -373,23 +370,12 @@ contains
     work = .false.
     if (.not. this%static) work = this%integ%work_arrays()
     call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
-                      rk4_work=work, guard=guard, n_rates=rate_columns(this, work))
+                      rk4_work=work, guard=guard, n_rates=this%model%rate_columns(this%lat, work))
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
     if (.not. this%static) call initial_velocity(this)
     call this%model%prescribe(this%st%y, 0.0_wp)
   end subroutine allocate_state
-
-  !> Columns of the state's rates array acc: none for RK4 with 4 values a node (its fused
-  !> passes never read it), every local node's when the model sums the forces into it
-  !> (velocity Verlet), else the owned nodes'.
-  pure integer function rate_columns(this, rk4_work) result(n)
-    type(simulation_t), intent(in) :: this
-    logical, intent(in) :: rk4_work
-    n = this%lat%n_owned
-    if (rk4_work .and. this%model%n_state == 4) n = 0
-    if (this%model%sum_in_acc) n = this%lat%n_local
-  end function rate_columns
 
   !> The time loop of a dynamic run, from step 0 or the checkpoint it continues from, to
   !> n_steps: at the top of each step a checkpoint when due, the integrator's rates, the

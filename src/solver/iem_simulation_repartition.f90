@@ -50,7 +50,8 @@ contains
     call this%model%init(this%cfg, this%body, this%lat, n_selected, guard)
     if (.not. guard%failed) call this%st%init(this%lat%n_owned, this%lat%n_local, ns, &
                                                rk4_work=this%integ%work_arrays(), guard=guard, &
-                                               n_rates=rate_columns(this, this%integ%work_arrays()))
+                                               n_rates=this%model%rate_columns(this%lat, &
+                                                 this%integ%work_arrays()))
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
     this%model%w_ext_acc = w_ext
