@@ -25,6 +25,7 @@ module iem_simulation
   use iem_h5_output, only: h5_output_t
   use iem_logger, only: log_info
   use iem_heap, only: heap_release
+  use iem_underflow, only: flush_subnormals, restore_underflow
   use iem_timers, only: timer_start, timer_stop, t_output
   use iem_strings, only: itoa, rtoa
   use iem_alloc_guard, only: alloc_guard_t
@@ -339,6 +340,7 @@ contains
     class(simulation_t), intent(inout) :: this
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
+    logical :: gradual
 
     ! a dynamic run checkpoints and stops on SIGTERM/SIGUSR1 from here on (a signal during
     ! the set-up is acted on at the first check of the time loop)
@@ -351,11 +353,14 @@ contains
     call heap_release()
     call allocate_state(this, stat, msg)
     if (stat /= 0) return
+    ! subnormal results flushed to zero while the solver runs (iem_underflow)
+    call flush_subnormals(gradual)
     if (this%static) then
       call run_static(this, stat, msg)
     else
       call run_dynamic(this, stat, msg)
     end if
+    call restore_underflow(gradual)
   end subroutine simulation_run
 
   !> Allocate the state (with the work arrays the integrator needs), all ranks agreeing; set

@@ -12,9 +12,13 @@ module iem_cell_chunk
   use iem_fracture_kernel, only: fracture_chunk, damaged_cell
   implicit none
   private
-  public :: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, chunk_elastic_forces, &
+  public :: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_elastic, &
+            chunk_elastic_forces, &
             chunk_elastic_plain, chunk_elastic_plain_energy, chunk_elastic_plain_lean, &
             chunk_elastic_lean, chunk_general, law_coefficients, damping_stresses
+
+  !> The largest |(l/l0)^2 - 1| of an edge that edge_near measures.
+  real(wp), parameter :: near_limit = 1.0_wp/16.0_wp
 
   !> A node row of a chunk and its horizontal edges: the displacements u(0:m, 2) of its nodes
   !> 0..m and, for edges 1..m (from node c-1 to node c), the unit vector (x, y), inverse
@@ -42,12 +46,19 @@ contains
     type(edge_row_t), intent(inout) :: bot, top
     logical, intent(in) :: bottom
     type(edge_col_t), intent(out) :: v
-    integer :: c
+    integer :: c, n_far
     if (bottom) call row_edges(k, m, bot%u, bot%x, bot%y, bot%li, bot%st)
     call row_edges(k, m, top%u, top%x, top%y, top%li, top%st)
+    ! a vertical edge: along it the y displacements, across it the x ones
+    n_far = 0
     do c = 0, m
-      call edge(top%u(c, 1) - bot%u(c, 1), k%ly + (top%u(c, 2) - bot%u(c, 2)), k%il0(2), &
-                v%x(c), v%y(c), v%li(c), v%st(c))
+      call edge_near(top%u(c, 2) - bot%u(c, 2), top%u(c, 1) - bot%u(c, 1), k%ly, k%il0(2), &
+                     v%y(c), v%x(c), v%li(c), v%st(c), n_far)
+    end do
+    if (n_far == 0) return
+    do c = 0, m
+      call edge_far(top%u(c, 2) - bot%u(c, 2), top%u(c, 1) - bot%u(c, 1), k%ly, k%il0(2), &
+                    v%y(c), v%x(c), v%li(c), v%st(c))
     end do
   end subroutine chunk_edges
 
@@ -58,25 +69,73 @@ contains
     integer, intent(in) :: m
     real(wp), intent(in) :: u(0:chunk, 2)
     real(wp), intent(inout) :: x(chunk), y(chunk), li(chunk), st(chunk)
-    integer :: c
+    integer :: c, n_far
+    n_far = 0
     do c = 1, m
-      call edge(k%lx + (u(c, 1) - u(c - 1, 1)), u(c, 2) - u(c - 1, 2), k%il0(1), x(c), y(c), &
-                li(c), st(c))
+      call edge_near(u(c, 1) - u(c - 1, 1), u(c, 2) - u(c - 1, 2), k%lx, k%il0(1), x(c), y(c), &
+                     li(c), st(c), n_far)
+    end do
+    if (n_far == 0) return
+    do c = 1, m
+      call edge_far(u(c, 1) - u(c - 1, 1), u(c, 2) - u(c - 1, 2), k%lx, k%il0(1), x(c), y(c), &
+                    li(c), st(c))
     end do
   end subroutine row_edges
 
-  !> An edge vector (wx, wy) of inverse reference length il0: its unit vector (x, y), inverse
-  !> length li and engineering strain st.
-  elemental subroutine edge(wx, wy, il0, x, y, li, st)
-    real(wp), intent(in) :: wx, wy, il0
-    real(wp), intent(out) :: x, y, li, st
-    real(wp) :: l
-    l = sqrt(wx*wx + wy*wy)
+  !> An edge of reference length l0 (inverse il0) whose end moved by par along the edge and
+  !> perp across it, relative to its start: its unit vector's components along (a) and across
+  !> (b), its inverse length li and engineering strain st, the same whichever of edge_near
+  !> and edge_far measures it.
+  elemental subroutine edge_measure(par, perp, l0, il0, a, b, li, st)
+    real(wp), intent(in) :: par, perp, l0, il0
+    real(wp), intent(out) :: a, b, li, st
+    integer :: n_far
+    n_far = 0
+    call edge_near(par, perp, l0, il0, a, b, li, st, n_far)
+    if (n_far > 0) call edge_far(par, perp, l0, il0, a, b, li, st)
+  end subroutine edge_measure
+
+  !> edge_measure's values of an edge whose squared stretch differs from 1 by at most
+  !> near_limit (strains within about +-3%), by multiplications alone; n_far counts the
+  !> other edges (for edge_far; their values here are not used). docs/model.md, "Edge
+  !> measures", gives the accuracy.
+  elemental subroutine edge_near(par, perp, l0, il0, a, b, li, st, n_far)
+    real(wp), intent(in) :: par, perp, l0, il0
+    real(wp), intent(out) :: a, b, li, st
+    integer, intent(inout) :: n_far
+    real(wp) :: d, h, e
+    ! d = (l/l0)^2 - 1, without the cancellation of l^2 - l0^2
+    d = (par*(2.0_wp*l0 + par) + perp*perp)*(il0*il0)
+    ! h = (1 + d)^(-1/2) - 1: its series to d^6 (error below 0.21 |d|^7), then one Newton step
+    ! for r = 1 + h written in small quantities (error below 0.07 d^14 + round-off)
+    h = d*(-0.5_wp + d*(0.375_wp + d*(-0.3125_wp + d*(0.2734375_wp + d*(-0.24609375_wp &
+        + d*0.2255859375_wp)))))
+    e = d + h*(2.0_wp + h)*(1.0_wp + d)
+    h = h - 0.5_wp*(1.0_wp + h)*e
+    li = il0 + il0*h
+    a = (l0 + par)*li
+    b = perp*li
+    ! sqrt(1 + d) - 1 = (1 + d) r - 1
+    st = d + h*(1.0_wp + d)
+    n_far = n_far + merge(1, 0, abs(d) > near_limit)
+  end subroutine edge_near
+
+  !> edge_measure's values of an edge past edge_near's range (those within it left as they
+  !> are), with a square root and divisions.
+  elemental subroutine edge_far(par, perp, l0, il0, a, b, li, st)
+    real(wp), intent(in) :: par, perp, l0, il0
+    real(wp), intent(inout) :: a, b, li, st
+    real(wp) :: d, l, wa
+    d = (par*(2.0_wp*l0 + par) + perp*perp)*(il0*il0)
+    if (.not. abs(d) > near_limit) return
+    wa = l0 + par
+    l = sqrt(wa*wa + perp*perp)
     li = 1.0_wp/l
-    x = wx*li
-    y = wy*li
-    st = l*il0 - 1.0_wp
-  end subroutine edge
+    a = wa*li
+    b = perp*li
+    ! l/l0 - 1 without its cancellation
+    st = d/(1.0_wp + l*il0)
+  end subroutine edge_far
 
   !> The elastic law of a cell of constants k as five coefficients, the same form for both
   !> cells: g_q = c(1) eps_q + c(2) (eps_{q-1} + eps_{q+1}) + c(3) eps_{q+2} and

@@ -13,7 +13,7 @@ module iem_cell_kernel
   use iem_spring_constants, only: cell_constants_t
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk
-  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, chunk_elastic, &
+  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_elastic, &
                             chunk_elastic_forces, chunk_elastic_plain, &
                             chunk_elastic_plain_energy, chunk_elastic_plain_lean, &
                             chunk_elastic_lean, chunk_general, law_coefficients, damping_stresses
@@ -46,19 +46,20 @@ contains
     type(cell_constants_t), intent(in) :: k
     real(wp), intent(in) :: u(2, 4)
     real(wp), intent(out) :: ep(4), s(4)
-    real(wp) :: e(2, 4), len(4)
-    integer :: q
-    ! each edge as the kernel measures it: a horizontal edge from its left to its right node,
-    ! a vertical one from its bottom to its top node, reversed for the top and left edges
-    e(:, 1) = [k%lx + (u(1, 2) - u(1, 1)), u(2, 2) - u(2, 1)]
-    e(:, 2) = [u(1, 3) - u(1, 2), k%ly + (u(2, 3) - u(2, 2))]
-    e(:, 3) = -[k%lx + (u(1, 3) - u(1, 4)), u(2, 3) - u(2, 4)]
-    e(:, 4) = -[u(1, 4) - u(1, 1), k%ly + (u(2, 4) - u(2, 1))]
-    do q = 1, 4
-      len(q) = sqrt(sum(e(:, q)**2))
-      ep(q) = len(q)*k%il0(q) - 1.0_wp
-      e(:, q) = e(:, q)/len(q)
-    end do
+    real(wp) :: e(2, 4), li
+    ! each edge as the kernel measures it (edge_measure): a horizontal edge from its left to
+    ! its right node, a vertical one from its bottom to its top node, reversed for the top
+    ! and left edges
+    call edge_measure(u(1, 2) - u(1, 1), u(2, 2) - u(2, 1), k%lx, k%il0(1), e(1, 1), e(2, 1), &
+                      li, ep(1))
+    call edge_measure(u(2, 3) - u(2, 2), u(1, 3) - u(1, 2), k%ly, k%il0(2), e(2, 2), e(1, 2), &
+                      li, ep(2))
+    call edge_measure(u(1, 3) - u(1, 4), u(2, 3) - u(2, 4), k%lx, k%il0(3), e(1, 3), e(2, 3), &
+                      li, ep(3))
+    call edge_measure(u(2, 4) - u(2, 1), u(1, 4) - u(1, 1), k%ly, k%il0(4), e(2, 4), e(1, 4), &
+                      li, ep(4))
+    e(:, 3) = -e(:, 3)
+    e(:, 4) = -e(:, 4)
     ! corner q joins edge q and edge q-1
     s(1) = -dot_product(e(:, 1), e(:, 4))
     s(2) = -dot_product(e(:, 2), e(:, 1))
