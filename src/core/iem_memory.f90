@@ -20,8 +20,9 @@ module iem_memory
   real(wp), parameter, public :: model_node_bytes = 24.0_wp    ! lumped mass, summed forces (2)
   !> Velocity Verlet with 4 values a node sums the forces into its rates array: no forces.
   real(wp), parameter :: verlet_forces_bytes = 16.0_wp
-  !> One (2, n) copy of u or v while a frame is written.
-  real(wp), parameter, public :: frame_node_bytes = 16.0_wp
+  !> A frame's buffer per node: none (its fields go through one buffer of 32768 nodes, 512 kB,
+  !> a slab at a time; iem_h5_output_frames).
+  real(wp), parameter, public :: frame_node_bytes = 0.0_wp
   !> Dynamic relaxation's work arrays (ten (2, n) and one (4, n)).
   real(wp), parameter, public :: relax_node_bytes = 192.0_wp
   !> Decomposition, on every rank, per node of its share: the rank's cell list (int64 a

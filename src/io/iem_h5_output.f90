@@ -29,6 +29,8 @@ module iem_h5_output
     private
     logical :: is_open = .false.
     logical :: mesh_written = .false.
+    !> Whether /mesh/coordinates is written (by write_mesh_coordinates or write_mesh).
+    logical :: coords_written = .false.
     !> The caller's communicator (not duplicated); it must outlive the open file.
     type(MPI_Comm) :: comm
     integer :: rank = 0
@@ -76,6 +78,7 @@ module iem_h5_output
   contains
     procedure :: create => h5_output_create
     procedure :: write_mesh => h5_output_write_mesh
+    procedure :: write_mesh_coordinates => h5_output_write_mesh_coordinates
     procedure :: write_frame => h5_output_write_frame
     procedure :: write_history => h5_output_write_history
     procedure :: write_static_settings => h5_output_write_static_settings
@@ -118,11 +121,13 @@ module iem_h5_output
     end subroutine h5_output_create
 
     !> Writes /mesh and its attributes collectively, each rank its owned nodes and its cells
-    !> (with material, the cells' material numbers, 1-based, and the materials' names).
+    !> (with material, the cells' material numbers, 1-based, and the materials' names);
+    !> coords absent: write_mesh_coordinates has written them.
     module subroutine h5_output_write_mesh(this, coords, mass, cells, cell_gids, nx, ny, lx, ly, &
         thickness, plane, stat, msg, material, material_names)
       class(h5_output_t), intent(inout) :: this
-      real(wp), intent(in) :: coords(:, :), mass(:), lx, ly, thickness
+      real(wp), intent(in), optional :: coords(:, :)
+      real(wp), intent(in) :: mass(:), lx, ly, thickness
       integer(i8), intent(in) :: cells(:, :), cell_gids(:)
       integer, intent(in) :: nx, ny
       character(len=*), intent(in) :: plane
@@ -132,10 +137,19 @@ module iem_h5_output
       character(len=*), intent(in), optional :: material_names
     end subroutine h5_output_write_mesh
 
+    !> Writes /mesh/coordinates collectively, each rank its owned nodes (coords(2, n_owned)),
+    !> ahead of write_mesh, so that the caller can free coords before it makes the cells.
+    module subroutine h5_output_write_mesh_coordinates(this, coords, stat, msg)
+      class(h5_output_t), intent(inout) :: this
+      real(wp), intent(in) :: coords(:, :)
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine h5_output_write_mesh_coordinates
+
     !> Adds the next frame group (u, v of the owned nodes) and appends to /frames/time, step.
     !> u and v are rows u_row:u_row+1 and v_row:v_row+1 (default 1) of their arrays (n_owned
-    !> columns): a state y(:, 1:n_owned) is passed as it is, and each field is copied in turn
-    !> into one buffer of (2, n_owned) for the write (one field's copy at a time, not two).
+    !> columns): a state y(:, 1:n_owned) is passed as it is, and each field goes through one
+    !> buffer of at most 32768 nodes, a slab at a time (no copy of a whole field).
     module subroutine h5_output_write_frame(this, step, time, u, v, stat, msg, u_row, v_row)
       class(h5_output_t), intent(inout) :: this
       integer(i8), intent(in) :: step

@@ -47,6 +47,7 @@ contains
     this%xmf_path = xdmf_path_of(path)
     this%h5_name = path(index(path, '/', back=.true.) + 1:)
     this%mesh_written = .false.
+    this%coords_written = .false.
     this%n_nodes = n_nodes
     this%n_cells = n_cells
     this%n_owned = size(owned_gids, kind=i8)

@@ -2,7 +2,8 @@
 !> failed springs a frame, and the series /frames/time and /frames/step; the sidecar lists
 !> what each frame holds.
 submodule (iem_h5_output) iem_h5_output_frames
-  use mpi_f08, only: MPI_Allgather, MPI_Gatherv, MPI_INTEGER, MPI_INTEGER8
+  use mpi_f08, only: MPI_Allgather, MPI_Gatherv, MPI_Allreduce, MPI_IN_PLACE, MPI_MAX, &
+    MPI_INTEGER, MPI_INTEGER8
   use iem_kinds, only: mpi_wp
   use iem_sort, only: stable_order
   use iem_strings, only: itoa
@@ -17,6 +18,9 @@ submodule (iem_h5_output) iem_h5_output_frames
   use, intrinsic :: iso_c_binding, only: c_ptr, c_loc
   implicit none
 
+  !> Nodes of a frame's field written at a time (a 512 kB buffer).
+  integer(i8), parameter :: frame_slab = 32768
+
 contains
 
   !> Adds the next frame group (u, v of the owned nodes) and appends to /frames/time, step.
@@ -26,7 +30,7 @@ contains
     real(wp), allocatable :: grown(:)
     integer, allocatable :: grown_fields(:)
     integer(HID_T) :: gid, fspace, mspace
-    integer :: ierr, ru, rv
+    integer :: ierr, ru, rv, n_slabs
     logical :: shapes_ok
 
     ru = 1
@@ -47,6 +51,9 @@ contains
       rv >= 1 .and. size(v, 1) >= rv + 1 .and. size(v, 2, kind=i8) == this%n_owned
     name = xdmf_frame_name(this%n_frames)
     where = '/frames/'//name
+    ! every rank writes each field in the same number of collective writes
+    n_slabs = int((this%n_owned + frame_slab - 1)/frame_slab)
+    call MPI_Allreduce(MPI_IN_PLACE, n_slabs, 1, MPI_INTEGER, MPI_MAX, this%comm)
     gid = -1
     fspace = -1
     mspace = -1
@@ -56,9 +63,9 @@ contains
       call put_attr(this%path, gid, where, 'time', stat, msg, rval=time)
       call put_attr(this%path, gid, where, 'step', stat, msg, lval=step)
       call write_node_field(this, gid, where//'/displacement', 'displacement', u, shapes_ok, &
-        stat, msg, ru)
+        stat, msg, ru, n_slabs)
       call write_node_field(this, gid, where//'/velocity', 'velocity', v, shapes_ok, stat, msg, &
-        rv)
+        rv, n_slabs)
       call write_xyz_view(this, gid, where, 'displacement', stat, msg)
       call write_xyz_view(this, gid, where, 'velocity', stat, msg)
       if (stat /= 0) exit work
@@ -118,10 +125,12 @@ contains
   end procedure h5_output_write_frame
 
   !> Creates the node dataset `name` (2, n_nodes) in group `gid` and writes this rank's nodes
-  !> from rows row:row+1 of field(:, n_owned) (a contiguous copy of them when field has other
-  !> rows: a strided selection in memory costs HDF5 and MPI-IO more than the copy, measured);
-  !> if not shapes_ok, writes nothing but takes part. No-op if stat /= 0.
-  subroutine write_node_field(this, gid, where, name, field, shapes_ok, stat, msg, row)
+  !> from rows row:row+1 of field(:, n_owned), in n_slabs collective writes (the same number
+  !> on every rank) of up to frame_slab nodes, each copied into one small buffer: no copy of
+  !> the whole field (a strided selection in memory costs HDF5 and MPI-IO more than a copy,
+  !> measured); one slab uses the rank's node selection as it is. If not shapes_ok, writes
+  !> nothing but takes part. No-op if stat /= 0.
+  subroutine write_node_field(this, gid, where, name, field, shapes_ok, stat, msg, row, n_slabs)
     class(h5_output_t), intent(in) :: this
     integer(HID_T), intent(in) :: gid
     character(len=*), intent(in) :: where, name
@@ -129,39 +138,46 @@ contains
     logical, intent(in) :: shapes_ok
     integer, intent(inout) :: stat
     character(len=:), allocatable, intent(inout) :: msg
-    integer, intent(in) :: row
+    integer, intent(in) :: row, n_slabs
     real(wp), allocatable :: buf(:, :)
-    real(wp) :: dummy(2, 1)
+    integer(i8), allocatable :: starts(:), lens(:)
     integer(HID_T) :: did, fspace, mspace
-    integer :: ierr
+    integer(i8) :: i0, i1, n_mine
+    integer :: ierr, k
 
     if (stat /= 0) return
     did = -1
     fspace = -1
     mspace = -1
+    n_mine = 0
+    if (shapes_ok) n_mine = this%n_owned
+    allocate(buf(2, max(1_i8, min(frame_slab, n_mine))))
+    buf = 0.0_wp
     work: block
       call h5dcreate_f(gid, name, H5T_IEEE_F64LE, this%node_fspace, did, ierr, this%dcpl_id)
       if (failed(this%path, ierr, 'h5dcreate_f', where, stat, msg)) exit work
-      if (shapes_ok .and. size(field, 1) == 2) then
-        call h5dwrite_f(did, this%real_mtype, field, shape(field, HSIZE_T), ierr, &
-          this%node_mspace, this%node_fspace, this%xfer_id)
-      else if (shapes_ok) then
-        buf = field(row:row + 1, :)
-        call h5dwrite_f(did, this%real_mtype, buf, shape(buf, HSIZE_T), ierr, &
-          this%node_mspace, this%node_fspace, this%xfer_id)
-        deallocate(buf)
-      else
-        call h5scopy_f(this%node_fspace, fspace, ierr)
-        if (failed(this%path, ierr, 'h5scopy_f', where, stat, msg)) exit work
-        call h5sselect_none_f(fspace, ierr)
-        if (failed(this%path, ierr, 'h5sselect_none_f', where, stat, msg)) exit work
-        call make_mem_space(this%path, 2, 0_i8, where, mspace, stat, msg)
-        if (stat /= 0) exit work
-        dummy = 0
-        call h5dwrite_f(did, this%real_mtype, dummy, shape(dummy, HSIZE_T), ierr, mspace, &
-          fspace, this%xfer_id)
-      end if
-      if (failed(this%path, ierr, 'h5dwrite_f', where, stat, msg)) exit work
+      do k = 1, n_slabs
+        ! this rank's owned nodes i0..i1 (none when i1 < i0)
+        i0 = (k - 1)*frame_slab + 1
+        i1 = min(k*frame_slab, n_mine)
+        if (i1 >= i0) buf(:, 1:i1 - i0 + 1) = field(row:row + 1, i0:i1)
+        if (n_slabs == 1 .and. shapes_ok) then
+          call h5dwrite_f(did, this%real_mtype, buf, shape(buf, HSIZE_T), ierr, &
+            this%node_mspace, this%node_fspace, this%xfer_id)
+        else
+          call h5scopy_f(this%node_fspace, fspace, ierr)
+          if (failed(this%path, ierr, 'h5scopy_f', where, stat, msg)) exit work
+          call slab_runs(this%run_start, this%run_len, i0, i1, starts, lens)
+          call select_runs(this%path, fspace, where, 2, starts, lens, stat, msg)
+          call make_mem_space(this%path, 2, max(0_i8, i1 - i0 + 1), where, mspace, stat, msg)
+          if (stat /= 0) exit work
+          call h5dwrite_f(did, this%real_mtype, buf, shape(buf, HSIZE_T), ierr, mspace, fspace, &
+            this%xfer_id)
+          call close_space(this%path, fspace, stat, msg)
+          call close_space(this%path, mspace, stat, msg)
+        end if
+        if (failed(this%path, ierr, 'h5dwrite_f', where, stat, msg)) exit work
+      end do
     end block work
     if (did >= 0) then
       call h5dclose_f(did, ierr)
@@ -170,6 +186,33 @@ contains
     call close_space(this%path, fspace, stat, msg)
     call close_space(this%path, mspace, stat, msg)
   end subroutine write_node_field
+
+  !> The runs (first global node, length) of the owned nodes i0..i1 (1-based, in order) of a
+  !> rank whose owned nodes are the runs (run_start, run_len); none when i1 < i0.
+  pure subroutine slab_runs(run_start, run_len, i0, i1, starts, lens)
+    integer(i8), intent(in) :: run_start(:), run_len(:), i0, i1
+    integer(i8), allocatable, intent(out) :: starts(:), lens(:)
+    integer(i8) :: first, last, a, b
+    integer :: r, n, k_runs
+    do n = 0, 1
+      if (n == 1) allocate(starts(k_runs), lens(k_runs))
+      k_runs = 0
+      first = 1
+      do r = 1, size(run_start)
+        last = first + run_len(r) - 1
+        a = max(first, i0)
+        b = min(last, i1)
+        if (a <= b) then
+          k_runs = k_runs + 1
+          if (n == 1) then
+            starts(k_runs) = run_start(r) + (a - first)
+            lens(k_runs) = b - a + 1
+          end if
+        end if
+        first = last + 1
+      end do
+    end do
+  end subroutine slab_runs
 
   !> Adds <name>_xyz to group `gid` (path `where`): a virtual dataset (n_nodes, 3) whose first
   !> two columns are the node vector <name> (n_nodes, 2) of the same group and whose third is

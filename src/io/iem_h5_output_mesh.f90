@@ -34,8 +34,18 @@ contains
       msg = 'iem_h5_output: write_mesh called twice for '//this%path
       return
     end if
+    if (present(coords) .eqv. this%coords_written) then
+      stat = 1
+      msg = 'iem_h5_output: write_mesh needs the coordinates exactly once (coords or '// &
+        'write_mesh_coordinates) for '//this%path
+      return
+    end if
     n_my_cells = size(cell_gids, kind=i8)
-    local_msg = check_mesh_args(this, coords, mass, cells, cell_gids)
+    if (present(coords)) then
+      local_msg = check_mesh_args(this, mass, cells, cell_gids, coords)
+    else
+      local_msg = check_mesh_args(this, mass, cells, cell_gids)
+    end if
     bad = merge(1, 0, len(local_msg) > 0)
     call MPI_Allreduce(bad, any_bad, 1, MPI_INTEGER, MPI_MAX, this%comm)
     call MPI_Allreduce(n_my_cells, total, 1, mpi_i8(), MPI_SUM, this%comm)
@@ -65,15 +75,10 @@ contains
       call h5gopen_f(this%file_id, 'mesh', gid, ierr)
       if (failed(this%path, ierr, 'h5gopen_f', '/mesh', stat, msg)) exit work
 
-      call h5dcreate_f(gid, 'coordinates', H5T_IEEE_F64LE, this%node_fspace, did, ierr, &
-        this%dcpl_id)
-      if (failed(this%path, ierr, 'h5dcreate_f', '/mesh/coordinates', stat, msg)) exit work
-      call h5dwrite_f(did, this%real_mtype, coords, shape(coords, HSIZE_T), ierr, &
-        this%node_mspace, this%node_fspace, this%xfer_id)
-      if (failed(this%path, ierr, 'h5dwrite_f', '/mesh/coordinates', stat, msg)) exit work
-      call h5dclose_f(did, ierr)
-      did = -1
-      if (failed(this%path, ierr, 'h5dclose_f', '/mesh/coordinates', stat, msg)) exit work
+      if (present(coords)) then
+        call write_coordinates(this, gid, coords, stat, msg)
+        if (stat /= 0) exit work
+      end if
 
       call h5screate_simple_f(2, [4_HSIZE_T, int(this%n_cells, HSIZE_T)], cell_fspace, ierr)
       if (failed(this%path, ierr, 'h5screate_simple_f', '/mesh/cells', stat, msg)) exit work
@@ -169,17 +174,20 @@ contains
   end procedure h5_output_write_mesh
 
   !> Empty if the arguments of write_mesh are consistent on this rank, else what is wrong.
-  function check_mesh_args(this, coords, mass, cells, cell_gids) result(err)
+  function check_mesh_args(this, mass, cells, cell_gids, coords) result(err)
     class(h5_output_t), intent(in) :: this
-    real(wp), intent(in) :: coords(:, :), mass(:)
+    real(wp), intent(in) :: mass(:)
     integer(i8), intent(in) :: cells(:, :), cell_gids(:)
+    real(wp), intent(in), optional :: coords(:, :)
     character(len=:), allocatable :: err
     integer :: n
 
     err = ''
     n = size(cell_gids)
-    if (size(coords, 1) /= 2 .or. size(coords, 2, kind=i8) /= this%n_owned .or. &
-        size(mass, kind=i8) /= this%n_owned) then
+    if (present(coords)) err = check_coords(this, coords)
+    if (len(err) > 0) then
+      continue
+    else if (size(mass, kind=i8) /= this%n_owned) then
       err = 'coords and mass must be (2, n_owned) and (n_owned)'
     else if (size(cells, 1) /= 4 .or. size(cells, 2) /= n) then
       err = 'cells must be (4, size(cell_gids))'
@@ -193,5 +201,67 @@ contains
       end if
     end if
   end function check_mesh_args
+
+  !> Empty if coords is (2, n_owned) on this rank, else what is wrong.
+  function check_coords(this, coords) result(err)
+    class(h5_output_t), intent(in) :: this
+    real(wp), intent(in) :: coords(:, :)
+    character(len=:), allocatable :: err
+    err = ''
+    if (size(coords, 1) /= 2 .or. size(coords, 2, kind=i8) /= this%n_owned) &
+      err = 'coords and mass must be (2, n_owned) and (n_owned)'
+  end function check_coords
+
+  !> /mesh/coordinates in the open group gid (each rank its owned nodes), collectively;
+  !> marks them written.
+  subroutine write_coordinates(this, gid, coords, stat, msg)
+    class(h5_output_t), intent(inout) :: this
+    integer(HID_T), intent(in) :: gid
+    real(wp), intent(in) :: coords(:, :)
+    integer, intent(inout) :: stat
+    character(len=:), allocatable, intent(inout) :: msg
+    integer(HID_T) :: did
+    integer :: ierr
+    if (stat /= 0) return
+    call h5dcreate_f(gid, 'coordinates', H5T_IEEE_F64LE, this%node_fspace, did, ierr, &
+      this%dcpl_id)
+    if (failed(this%path, ierr, 'h5dcreate_f', '/mesh/coordinates', stat, msg)) return
+    call h5dwrite_f(did, this%real_mtype, coords, shape(coords, HSIZE_T), ierr, &
+      this%node_mspace, this%node_fspace, this%xfer_id)
+    if (failed(this%path, ierr, 'h5dwrite_f', '/mesh/coordinates', stat, msg)) continue
+    call h5dclose_f(did, ierr)
+    if (failed(this%path, ierr, 'h5dclose_f', '/mesh/coordinates', stat, msg)) return
+    if (stat == 0) this%coords_written = .true.
+  end subroutine write_coordinates
+
+  !> Writes /mesh/coordinates ahead of write_mesh (documented at its interface).
+  module procedure h5_output_write_mesh_coordinates
+    character(len=:), allocatable :: local_msg
+    integer(HID_T) :: gid
+    integer :: ierr, bad, any_bad
+
+    stat = 0
+    msg = ''
+    if (.not. this%is_open .or. this%mesh_written .or. this%coords_written) then
+      stat = 1
+      msg = 'iem_h5_output: write_mesh_coordinates on a file that is not open or whose '// &
+        'coordinates are written ('//this%path//')'
+      return
+    end if
+    local_msg = check_coords(this, coords)
+    bad = merge(1, 0, len(local_msg) > 0)
+    call MPI_Allreduce(bad, any_bad, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    if (any_bad /= 0) then
+      stat = 1
+      if (bad == 0) local_msg = 'invalid arguments on another rank'
+      msg = 'iem_h5_output: write_mesh_coordinates: '//local_msg//' ('//this%path//')'
+      return
+    end if
+    call h5gopen_f(this%file_id, 'mesh', gid, ierr)
+    if (failed(this%path, ierr, 'h5gopen_f', '/mesh', stat, msg)) return
+    call write_coordinates(this, gid, coords, stat, msg)
+    call h5gclose_f(gid, ierr)
+    if (failed(this%path, ierr, 'h5gclose_f', '/mesh', stat, msg)) return
+  end procedure h5_output_write_mesh_coordinates
 
 end submodule iem_h5_output_mesh

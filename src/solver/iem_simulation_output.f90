@@ -67,14 +67,22 @@ contains
       this%probe_gid, nxy, stat, msg)
     if (stat /= 0) return
     this%output_open = .true.
-    nc = this%lat%n_counted()
-    allocate(coords(2, this%lat%n_owned), cells(4, nc), cell_gids(nc), material(nc), stat=ierr)
-    call guard%note(ierr, 'the mesh output buffers', 16.0_wp*this%lat%n_owned + 48.0_wp*nc)
+    ! the coordinates first, freed before the cells' buffers are made (they do not add up)
+    allocate(coords(2, this%lat%n_owned), stat=ierr)
+    call guard%note(ierr, 'the mesh output buffers', 16.0_wp*this%lat%n_owned)
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
     do l = 1, this%lat%n_owned
       coords(:, l) = this%lat%node_xy(l)
     end do
+    call this%out%write_mesh_coordinates(coords, stat, msg)
+    if (stat /= 0) return
+    deallocate(coords)
+    nc = this%lat%n_counted()
+    allocate(cells(4, nc), cell_gids(nc), material(nc), stat=ierr)
+    call guard%note(ierr, 'the mesh output buffers', 48.0_wp*nc)
+    call guard%agree(this%comm, this%grid%label(), stat, msg)
+    if (stat /= 0) return
     k = 0
     do l = 1, this%lat%n_cells
       if (.not. this%lat%cell_counted(l)) cycle
@@ -93,9 +101,10 @@ contains
         material_names = material_names//trim(this%cfg%materials(k)%name)
       end if
     end do
-    call this%out%write_mesh(coords, this%model%mass, cells, cell_gids, this%grid%nx, &
-      this%grid%ny, this%grid%lx, this%grid%ly, this%grid%thickness, &
-      trim(this%cfg%geometry%plane), stat, msg, material, material_names)
+    call this%out%write_mesh(mass=this%model%mass, cells=cells, cell_gids=cell_gids, &
+      nx=this%grid%nx, ny=this%grid%ny, lx=this%grid%lx, ly=this%grid%ly, &
+      thickness=this%grid%thickness, plane=trim(this%cfg%geometry%plane), stat=stat, msg=msg, &
+      material=material, material_names=material_names)
     if (stat /= 0) return
     if (size(this%sp_probe) > 0) then
       allocate(sp_names(size(this%sp_probe)), sp_xy(2, size(this%sp_probe)))
