@@ -41,11 +41,7 @@ contains
       return
     end if
     n_my_cells = size(cell_gids, kind=i8)
-    if (present(coords)) then
-      local_msg = check_mesh_args(this, mass, cells, cell_gids, coords)
-    else
-      local_msg = check_mesh_args(this, mass, cells, cell_gids)
-    end if
+    local_msg = check_mesh_args(this, mass, cells, cell_gids, coords)
     bad = merge(1, 0, len(local_msg) > 0)
     call MPI_Allreduce(bad, any_bad, 1, MPI_INTEGER, MPI_MAX, this%comm)
     call MPI_Allreduce(n_my_cells, total, 1, mpi_i8(), MPI_SUM, this%comm)
@@ -185,10 +181,9 @@ contains
     err = ''
     n = size(cell_gids)
     if (present(coords)) err = check_coords(this, coords)
-    if (len(err) > 0) then
-      continue
-    else if (size(mass, kind=i8) /= this%n_owned) then
-      err = 'coords and mass must be (2, n_owned) and (n_owned)'
+    if (len(err) > 0) return
+    if (size(mass, kind=i8) /= this%n_owned) then
+      err = 'mass must be (n_owned)'
     else if (size(cells, 1) /= 4 .or. size(cells, 2) /= n) then
       err = 'cells must be (4, size(cell_gids))'
     else if (n > 0) then
@@ -209,7 +204,7 @@ contains
     character(len=:), allocatable :: err
     err = ''
     if (size(coords, 1) /= 2 .or. size(coords, 2, kind=i8) /= this%n_owned) &
-      err = 'coords and mass must be (2, n_owned) and (n_owned)'
+      err = 'coords must be (2, n_owned)'
   end function check_coords
 
   !> /mesh/coordinates in the open group gid (each rank its owned nodes), collectively;
