@@ -100,17 +100,19 @@ contains
   end subroutine fracture_precut
 
   !> Recompute hit from kappa (after the state was read back from a checkpoint or moved);
-  !> cell_mat: each cell's material.
+  !> cell_mat: each cell's material (empty: every cell's is 1).
   subroutine fracture_refresh(this, cell_mat)
     class(fracture_t), intent(inout) :: this
     integer, intent(in) :: cell_mat(:)
-    integer :: c
+    integer :: c, mt
     if (size(this%hit) /= size(this%kappa, 2)) then
       deallocate(this%hit)
       allocate(this%hit(size(this%kappa, 2)))
     end if
     do c = 1, size(this%hit)
-      associate(lw => this%laws(cell_mat(c)))
+      mt = 1
+      if (size(cell_mat) > 0) mt = cell_mat(c)
+      associate(lw => this%laws(mt))
         this%hit(c) = any(this%kappa(1:4, c) == precut_kappa) .or. &
                       any(this%kappa(1:4, c) > lw%onset(crit_tension)) .or. &
                       any(this%kappa(5:8, c) > lw%onset(crit_crushing)) .or. &

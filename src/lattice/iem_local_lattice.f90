@@ -2,6 +2,8 @@
 !> nodes after (grouped by owning rank), and the cells touching owned nodes (ascending global
 !> number), each with its corner nodes, material and open edges. The time loop reads only the
 !> cell-to-node table and the materials; numbers and grid indices serve set-up and output.
+!> The owned nodes' numbers and grid indices and the cells' numbers are kept as runs along
+!> the grid rows (a few integers a row, none a node or cell), the halo nodes' one by one.
 module iem_local_lattice
   use, intrinsic :: iso_fortran_env, only: int8
   use iem_kinds, only: wp, ip, i8
@@ -12,16 +14,29 @@ module iem_local_lattice
   !> Local lattice of one rank.
   type :: local_lattice_t
     integer :: n_owned = 0, n_local = 0, n_cells = 0
-    !> Global 0-based number of each local node and its grid indices (i, j) (2, n_local):
-    !> its reference coordinates are (i lx, j ly) (node_xy), with the grid's cell sizes.
-    integer(i8), allocatable :: gid(:)
-    integer, allocatable :: ij(:, :)
+    !> The owned nodes in runs along a grid row: run r holds the nodes run_first(r) ..
+    !> run_first(r + 1) - 1 (run_first(n_runs + 1) = n_owned + 1), the k-th of them (from 0)
+    !> at grid indices (run_i(r) + k, run_j(r)) with global 0-based number run_gid(r) + k;
+    !> runs in ascending order of number. Read them with node_gid, node_ij, local_of.
+    integer :: n_runs = 0
+    integer, allocatable :: run_first(:), run_i(:), run_j(:)
+    integer(i8), allocatable :: run_gid(:)
+    !> The halo nodes' global numbers and grid indices (node n_owned + k is halo node k).
+    integer(i8), allocatable :: halo_gid(:)
+    integer, allocatable :: halo_ij(:, :)
+    !> The grid's cell sizes: a node's reference coordinates are (i lx, j ly) (node_xy).
     real(wp) :: lx = 0.0_wp, ly = 0.0_wp
     !> Local corner nodes of each local cell, counter-clockwise from lower left.
     integer(ip), allocatable :: cell_nodes(:, :)
-    !> Global 0-based number of each local cell, its material (1..), and its open edges: bit
-    !> q-1 set when edge q (bottom, right, top, left) lies on the boundary of the body.
-    integer(i8), allocatable :: cell_gid(:)
+    !> The local cells in runs of consecutive global numbers: run r holds the cells
+    !> cell_run_first(r) .. cell_run_first(r + 1) - 1 (cell_run_first(n_cell_runs + 1) =
+    !> n_cells + 1), numbered from cell_run_gid(r) on. Read them with cell_gid, cell_local_of.
+    integer :: n_cell_runs = 0
+    integer, allocatable :: cell_run_first(:)
+    integer(i8), allocatable :: cell_run_gid(:)
+    !> Each local cell's material (1..; kept only when the lattice is mixed, else every
+    !> cell's is 1: read it with mat) and its open edges: bit q-1 set when edge q (bottom,
+    !> right, top, left) lies on the boundary of the body.
     integer, allocatable :: cell_mat(:)
     integer(int8), allocatable :: cell_open(:)
     !> With shapes only: the shape that decided each cell (0: the background or the image), and
@@ -32,6 +47,14 @@ module iem_local_lattice
     logical :: mixed = .false.
   contains
     procedure :: node_xy => local_lattice_node_xy
+    procedure :: node_ij => local_lattice_node_ij
+    procedure :: node_gid => local_lattice_node_gid
+    procedure :: owned_gids => local_lattice_owned_gids
+    procedure :: local_of => local_lattice_local_of
+    procedure :: cell_gid => local_lattice_cell_gid
+    procedure :: cell_gids => local_lattice_cell_gids
+    procedure :: cell_local_of => local_lattice_cell_local_of
+    procedure :: mat => local_lattice_mat
     procedure :: cell_counted => local_lattice_cell_counted
     procedure :: n_counted => local_lattice_n_counted
     procedure :: edge_open => local_lattice_edge_open
@@ -45,8 +68,144 @@ contains
     class(local_lattice_t), intent(in) :: this
     integer, intent(in) :: l
     real(wp) :: xy(2)
-    xy = [this%ij(1, l)*this%lx, this%ij(2, l)*this%ly]
+    integer :: ij(2)
+    ij = this%node_ij(l)
+    xy = [ij(1)*this%lx, ij(2)*this%ly]
   end function local_lattice_node_xy
+
+  !> Grid indices (i, j) of local node l.
+  pure function local_lattice_node_ij(this, l) result(ij)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: l
+    integer :: ij(2), r
+    if (l > this%n_owned) then
+      ij = this%halo_ij(:, l - this%n_owned)
+    else
+      r = run_of(this, l)
+      ij = [this%run_i(r) + (l - this%run_first(r)), this%run_j(r)]
+    end if
+  end function local_lattice_node_ij
+
+  !> Global 0-based number of local node l.
+  pure integer(i8) function local_lattice_node_gid(this, l) result(g)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: l
+    integer :: r
+    if (l > this%n_owned) then
+      g = this%halo_gid(l - this%n_owned)
+    else
+      r = run_of(this, l)
+      g = this%run_gid(r) + (l - this%run_first(r))
+    end if
+  end function local_lattice_node_gid
+
+  !> Global numbers of the owned nodes 1..n_owned (ascending).
+  pure function local_lattice_owned_gids(this) result(g)
+    class(local_lattice_t), intent(in) :: this
+    integer(i8), allocatable :: g(:)
+    integer :: r, l
+    allocate(g(this%n_owned))
+    do r = 1, this%n_runs
+      do l = this%run_first(r), this%run_first(r + 1) - 1
+        g(l) = this%run_gid(r) + (l - this%run_first(r))
+      end do
+    end do
+  end function local_lattice_owned_gids
+
+  !> Local index of the owned node with global number g (0 when this rank does not own it).
+  pure integer function local_lattice_local_of(this, g) result(l)
+    class(local_lattice_t), intent(in) :: this
+    integer(i8), intent(in) :: g
+    integer :: r
+    l = 0
+    if (this%n_runs == 0) return
+    if (g < this%run_gid(1)) return
+    r = last_at_or_below_i8(this%run_gid(1:this%n_runs), g)
+    if (g - this%run_gid(r) < this%run_first(r + 1) - this%run_first(r)) &
+      l = this%run_first(r) + int(g - this%run_gid(r))
+  end function local_lattice_local_of
+
+  !> Global 0-based number of local cell c.
+  pure integer(i8) function local_lattice_cell_gid(this, c) result(g)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: c
+    integer :: r
+    r = last_at_or_below(this%cell_run_first(1:this%n_cell_runs), c)
+    g = this%cell_run_gid(r) + (c - this%cell_run_first(r))
+  end function local_lattice_cell_gid
+
+  !> Global numbers of the local cells 1..n_cells (ascending).
+  pure function local_lattice_cell_gids(this) result(g)
+    class(local_lattice_t), intent(in) :: this
+    integer(i8), allocatable :: g(:)
+    integer :: r, c
+    allocate(g(this%n_cells))
+    do r = 1, this%n_cell_runs
+      do c = this%cell_run_first(r), this%cell_run_first(r + 1) - 1
+        g(c) = this%cell_run_gid(r) + (c - this%cell_run_first(r))
+      end do
+    end do
+  end function local_lattice_cell_gids
+
+  !> Local index of the local cell with global number g (0 when it is not a local cell).
+  pure integer function local_lattice_cell_local_of(this, g) result(c)
+    class(local_lattice_t), intent(in) :: this
+    integer(i8), intent(in) :: g
+    integer :: r
+    c = 0
+    if (this%n_cell_runs == 0) return
+    if (g < this%cell_run_gid(1)) return
+    r = last_at_or_below_i8(this%cell_run_gid(1:this%n_cell_runs), g)
+    if (g - this%cell_run_gid(r) < this%cell_run_first(r + 1) - this%cell_run_first(r)) &
+      c = this%cell_run_first(r) + int(g - this%cell_run_gid(r))
+  end function local_lattice_cell_local_of
+
+  !> The position of the last element of the ascending list a that is at most x (a(1) <= x).
+  pure integer function last_at_or_below(a, x) result(lo)
+    integer, intent(in) :: a(:), x
+    integer :: hi, mid
+    lo = 1
+    hi = size(a)
+    do while (lo < hi)
+      mid = (lo + hi + 1)/2
+      if (a(mid) <= x) then
+        lo = mid
+      else
+        hi = mid - 1
+      end if
+    end do
+  end function last_at_or_below
+
+  !> last_at_or_below for 64-bit integers.
+  pure integer function last_at_or_below_i8(a, x) result(lo)
+    integer(i8), intent(in) :: a(:), x
+    integer :: hi, mid
+    lo = 1
+    hi = size(a)
+    do while (lo < hi)
+      mid = (lo + hi + 1)/2
+      if (a(mid) <= x) then
+        lo = mid
+      else
+        hi = mid - 1
+      end if
+    end do
+  end function last_at_or_below_i8
+
+  !> The run that holds owned node l (1 <= l <= n_owned).
+  pure integer function run_of(this, l) result(r)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: l
+    r = last_at_or_below(this%run_first(1:this%n_runs), l)
+  end function run_of
+
+  !> Material (1..) of local cell c.
+  pure integer function local_lattice_mat(this, c) result(m)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: c
+    m = 1
+    if (this%mixed) m = this%cell_mat(c)
+  end function local_lattice_mat
 
   !> True for the cells this rank counts in global sums and writes: those whose first corner
   !> it owns (each cell is counted by exactly one rank).
@@ -72,10 +231,13 @@ contains
   !> Release all arrays.
   subroutine local_lattice_free(this)
     class(local_lattice_t), intent(inout) :: this
-    if (allocated(this%gid)) deallocate(this%gid)
-    if (allocated(this%ij)) deallocate(this%ij)
+    if (allocated(this%run_first)) deallocate(this%run_first, this%run_i, this%run_j, this%run_gid)
+    if (allocated(this%halo_gid)) deallocate(this%halo_gid)
+    if (allocated(this%halo_ij)) deallocate(this%halo_ij)
+    this%n_runs = 0
     if (allocated(this%cell_nodes)) deallocate(this%cell_nodes)
-    if (allocated(this%cell_gid)) deallocate(this%cell_gid)
+    if (allocated(this%cell_run_first)) deallocate(this%cell_run_first, this%cell_run_gid)
+    this%n_cell_runs = 0
     if (allocated(this%cell_mat)) deallocate(this%cell_mat)
     if (allocated(this%cell_open)) deallocate(this%cell_open)
     if (allocated(this%cell_src)) deallocate(this%cell_src)

@@ -39,7 +39,7 @@ contains
     if (.not. edge_set) then
       target = spec%node
       do l = 1, lat%n_local
-        in_set(l) = node_in(spec, body, lat%node_xy(l), lat%gid(l), target)
+        in_set(l) = node_in(spec, body, lat%node_xy(l), lat%node_gid(l), target)
       end do
     end if
     if (present(weight)) weight = 0.0_wp

@@ -128,9 +128,9 @@ contains
     integer(int8), allocatable :: mat(:, :), src(:, :)
     integer(i8), allocatable :: nid(:, :), keys(:), hits(:), cells(:)
     integer(ip), allocatable :: lmap(:, :)
-    integer(i8) :: g, c, nn
+    integer(i8) :: g, c, nn, pg
     integer :: i0, i1, j0, j1, a0, a1, b0, b1, r0, i, j, q, k, l, n_owned, n_halo, n_cells
-    integer :: ierr, nx, ny
+    integer :: ierr, nx, ny, n_runs, r, pi, pj
     logical :: shapes
     integer, parameter :: di(4) = [0, 1, 0, -1], dj(4) = [-1, 0, 1, 0]
     integer, parameter :: ci(4) = [0, 1, 1, 0], cj(4) = [0, 0, 1, 1]
@@ -196,24 +196,58 @@ contains
       end do
     end do
     shapes = size(body%shapes) > 0
-    allocate(keys(n_halo), lat%gid(n_owned + n_halo), lat%ij(2, n_owned + n_halo), &
-             own(n_owned + n_halo), lat%cell_gid(n_cells), lat%cell_nodes(4, n_cells), &
-             lat%cell_mat(n_cells), lat%cell_open(n_cells), stat=ierr)
+    ! the cells' materials only when there are several (lat%mat)
+    lat%mixed = body%n_materials > 1
+    ! the owned nodes' runs along the rows: a run ends where the next owned node is not the
+    ! right neighbour, or not the next number
+    n_runs = 0
+    pi = -2
+    pj = -1
+    pg = -2
+    do j = j0, j1
+      do i = i0, i1
+        if (nid(i, j) < 0) cycle
+        if (j /= pj .or. i /= pi + 1 .or. nid(i, j) /= pg + 1) n_runs = n_runs + 1
+        pi = i
+        pj = j
+        pg = nid(i, j)
+      end do
+    end do
+    allocate(keys(n_halo), lat%run_first(n_runs + 1), lat%run_i(n_runs), lat%run_j(n_runs), &
+             lat%run_gid(n_runs), lat%halo_gid(n_halo), lat%halo_ij(2, n_halo), &
+             own(n_owned + n_halo), lat%cell_nodes(4, n_cells), &
+             lat%cell_run_first(max(0, min(j1, ny - 1) - b0 + 1) + 1), &
+             lat%cell_run_gid(max(0, min(j1, ny - 1) - b0 + 1)), &
+             lat%cell_mat(merge(n_cells, 0, lat%mixed)), lat%cell_open(n_cells), stat=ierr)
     if (ierr == 0 .and. shapes) allocate(lat%cell_src(n_cells), lat%side_src(4, n_cells), &
                                          stat=ierr)
-    call guard%note(ierr, 'the lattice of the rank', 36.0_wp*(n_owned + n_halo) + &
-                    34.0_wp*n_cells)
+    call guard%note(ierr, 'the lattice of the rank', 4.0_wp*(n_owned + n_halo) + &
+                    24.0_wp*n_halo + 20.0_wp*n_runs + merge(26.0_wp, 22.0_wp, lat%mixed)*n_cells)
     if (guard%failed) return
     l = 0
+    r = 0
+    pi = -2
+    pj = -1
+    pg = -2
     do j = j0, j1
       do i = i0, i1
         if (nid(i, j) < 0) cycle
         l = l + 1
-        lat%gid(l) = nid(i, j)
-        lat%ij(:, l) = [i, j]
+        if (j /= pj .or. i /= pi + 1 .or. nid(i, j) /= pg + 1) then
+          r = r + 1
+          lat%run_first(r) = l
+          lat%run_i(r) = i
+          lat%run_j(r) = j
+          lat%run_gid(r) = nid(i, j)
+        end if
+        pi = i
+        pj = j
+        pg = nid(i, j)
         own(l) = int(me, ip)
       end do
     end do
+    lat%run_first(n_runs + 1) = n_owned + 1
+    lat%n_runs = n_runs
     k = 0
     do j = b0, b1
       do i = a0, a1
@@ -225,8 +259,7 @@ contains
     call sort_i8(keys)
     do k = 1, n_halo
       l = n_owned + k
-      g = mod(keys(k), nn)
-      lat%gid(l) = g
+      lat%halo_gid(k) = mod(keys(k), nn)
       own(l) = int(keys(k)/nn, ip)
     end do
     ! place the ring's halo nodes: each one's slot by binary search of its (owner, number)
@@ -235,7 +268,7 @@ contains
         if (lmap(i, j) /= -1) cycle
         k = find_key(keys, int(rcb%owner(i, j), i8)*nn + nid(i, j))
         lmap(i, j) = int(n_owned + k, ip)
-        lat%ij(:, n_owned + k) = [i, j]
+        lat%halo_ij(:, k) = [i, j]
       end do
     end do
     lat%n_owned = n_owned
@@ -243,17 +276,24 @@ contains
     lat%lx = body%grid%lx
     lat%ly = body%grid%ly
     lat%n_cells = n_cells
-    lat%mixed = body%n_materials > 1
+    ! the cells' numbers: runs of consecutive numbers (at most one a row of the window)
     k = 0
+    r = 0
+    pg = -2
     do j = b0, min(j1, ny - 1)
       c = body%cell_first(j) + lc(j - r0)
       do i = a0, min(i1, nx - 1)
         if (mat(i, j) <= 0) cycle
         k = k + 1
-        lat%cell_gid(k) = c
+        if (c /= pg + 1) then
+          r = r + 1
+          lat%cell_run_first(r) = k
+          lat%cell_run_gid(r) = c
+        end if
+        pg = c
         c = c + 1
         lat%cell_nodes(:, k) = [(lmap(i + ci(q), j + cj(q)), q = 1, 4)]
-        lat%cell_mat(k) = mat(i, j)
+        if (lat%mixed) lat%cell_mat(k) = mat(i, j)
         lat%cell_open(k) = 0_int8
         do q = 1, 4
           if (mat(i + di(q), j + dj(q)) == 0) lat%cell_open(k) = ibset(lat%cell_open(k), q - 1)
@@ -264,6 +304,8 @@ contains
         end if
       end do
     end do
+    lat%n_cell_runs = r
+    lat%cell_run_first(r + 1) = n_cells + 1
   end subroutine build_local_window
 
   !> Position of key in the ascending list keys (which holds it).

@@ -71,7 +71,7 @@ contains
           this%loc_r(:, this%n_loc) = [tf, lat%node_xy(a)]
         end if
         this%loc_i(:, this%n_loc) = [lat%cell_gid(c), int(q - 1, i8), &
-          int(failure_kind(fr%laws(lat%cell_mat(c)), fr%kappa(:, c), q), i8)]
+          int(failure_kind(fr%laws(lat%mat(c)), fr%kappa(:, c), q), i8)]
       end do
     end do
   end subroutine events_collect

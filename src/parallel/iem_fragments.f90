@@ -40,7 +40,7 @@ contains
   !> The number of fragments of the body (nodes joined through intact edges) and the node
   !> counts of its n_largest largest (descending, 0-padded), the same on every rank, from
   !> each rank's local lattice lat, halo plan halo and fracture state fr (materials of the
-  !> cells: lat%cell_mat). Collective.
+  !> cells: lat%mat). Collective.
   subroutine fragments_count(this, lat, halo, comm, fr, n_fragments, largest)
     class(fragments_t), intent(inout) :: this
     type(local_lattice_t), intent(in) :: lat
@@ -101,7 +101,7 @@ contains
       do q = 1, 4
         ! an undamaged cell's edges are all intact
         if (fr%hit(c)) then
-          if (edge_factor(fr%laws(lat%cell_mat(c)), fr%kappa(:, c), q) <= 0.0_wp) cycle
+          if (edge_factor(fr%laws(lat%mat(c)), fr%kappa(:, c), q) <= 0.0_wp) cycle
         end if
         call join(lat%cell_nodes(q, c), lat%cell_nodes(mod(q, 4) + 1, c))
       end do
@@ -118,7 +118,7 @@ contains
       end if
       k = this%comp(r)
       this%comp(l) = k
-      this%label(k) = min(this%label(k), lat%gid(l))
+      this%label(k) = min(this%label(k), lat%node_gid(l))
     end do
   contains
     integer function root(a) result(r_)

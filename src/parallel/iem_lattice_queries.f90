@@ -28,8 +28,7 @@ contains
     j = min(max(nint(y/grid%ly), 0), grid%ny)
     mine = huge(1_i8)
     do l = 1, lat%n_owned
-      if (lat%ij(1, l) == i .and. lat%ij(2, l) == j) &
-        mine = lat%gid(l)
+      if (all(lat%node_ij(l) == [i, j])) mine = lat%node_gid(l)
     end do
     call MPI_Allreduce(MPI_IN_PLACE, mine, 1, MPI_INTEGER8, MPI_MIN, comm)
     best = mine(1)
@@ -39,8 +38,8 @@ contains
     do l = 1, lat%n_owned
       xl = lat%node_xy(l)
       d = (xl(1) - x)**2 + (xl(2) - y)**2
-      if (d < dl(1) .or. (d == dl(1) .and. real(lat%gid(l), wp) < dl(2))) &
-        dl = [d, real(lat%gid(l), wp)]
+      if (d < dl(1) .or. (d == dl(1) .and. real(lat%node_gid(l), wp) < dl(2))) &
+        dl = [d, real(lat%node_gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, dl, 1, MPI_2DOUBLE_PRECISION, MPI_MINLOC, comm)
     best = int(dl(2), i8)
@@ -75,7 +74,7 @@ contains
     integer :: l
     xy = 0.0_wp
     do l = 1, lat%n_owned
-      if (lat%gid(l) == g) xy = lat%node_xy(l)
+      if (lat%node_gid(l) == g) xy = lat%node_xy(l)
     end do
     call MPI_Allreduce(MPI_IN_PLACE, xy, 2, MPI_DOUBLE_PRECISION, MPI_SUM, comm)
   end function node_place
@@ -97,8 +96,8 @@ contains
     v = -1
     do c = 1, lat%n_cells
       if (.not. lat%cell_counted(c)) cycle
-      if (lat%ij(1, lat%cell_nodes(1, c)) == i .and. lat%ij(2, lat%cell_nodes(1, c)) == j) &
-        v = [lat%cell_gid(c), int(lat%cell_mat(c), i8)]
+      if (all(lat%node_ij(lat%cell_nodes(1, c)) == [i, j])) &
+        v = [lat%cell_gid(c), int(lat%mat(c), i8)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, v, 2, MPI_INTEGER8, MPI_MAX, comm)
     cell = v(1)

@@ -48,7 +48,7 @@ contains
     type(local_lattice_t) :: lat2
     type(halo_t) :: halo2
     type(rcb_t) :: bis
-    integer :: w, l
+    integer :: w, l, ij(2)
 
     w = halo%width
     if (present(width)) w = width
@@ -57,7 +57,8 @@ contains
     ! the new owner of every node of the old lattice
     allocate(owner(lat%n_local))
     do l = 1, lat%n_local
-      owner(l) = int(bis%owner(lat%ij(1, l), lat%ij(2, l)), ip)
+      ij = lat%node_ij(l)
+      owner(l) = int(bis%owner(ij(1), ij(2)), ip)
     end do
     call migrate(lat, lat2, owner, reg, comm, stat, msg)
     if (stat /= 0) return
@@ -165,7 +166,7 @@ contains
     if (centre == centre_node) then
       do l = 1, old%n_owned
         r = owner(l)
-        call put(r, old%gid(l), l)
+        call put(r, old%node_gid(l), l)
       end do
     else
       do c = 1, old%n_cells
@@ -194,9 +195,9 @@ contains
       o = (k - 1)*rec
       g = transfer(rbuf(o + 1:o + gid_bytes), g)
       if (centre == centre_node) then
-        e = locate(new%gid(1:new%n_owned), g)
+        e = new%local_of(g)
       else
-        e = locate(new%cell_gid(1:new%n_cells), g)
+        e = new%cell_local_of(g)
       end if
       if (e == 0) then
         bad = 1
@@ -245,24 +246,4 @@ contains
       pos(rr) = pos(rr) + 1
     end subroutine put
   end subroutine move_centre
-
-  !> Index of g in the ascending array a, 0 if absent.
-  pure integer function locate(a, g) result(k)
-    integer(i8), intent(in) :: a(:), g
-    integer :: lo, hi, mid
-    k = 0
-    lo = 1
-    hi = size(a)
-    do while (lo <= hi)
-      mid = lo + (hi - lo)/2
-      if (a(mid) == g) then
-        k = mid
-        return
-      else if (a(mid) < g) then
-        lo = mid + 1
-      else
-        hi = mid - 1
-      end if
-    end do
-  end function locate
 end module iem_migration

@@ -87,18 +87,20 @@ module iem_model
     integer, allocatable :: ext_node(:), load_slot(:), bc_slot(:)
     real(wp), allocatable :: fext(:, :)
     !> Scratch for the kernel's plain energy sum, which the model does not ask for (0): the
-    !> energies that a sample reports are the exact sums of en_cell.
+    !> energies that a sample reports are the exact sum en_sum.
     real(wp) :: energy = 0.0_wp
-    !> Whether a committed evaluation keeps the cells' energies in en_cell (a recorded one
+    !> Whether a committed evaluation sums the cells' energies into en_sum (a recorded one
     !> always does): the time loop clears it for the states that no history sample reads.
     logical :: energies_due = .true.
+    !> The strain energy of the counted cells at the last committed or recorded evaluation,
+    !> summed exactly (so independent of the partition) as the kernel forms each cell's.
+    type(exact_sum_t) :: en_sum
     !> The terms of the last rate evaluation, kept so that global sums are exact and so
-    !> independent of the partition: each local cell's energy (of the last committed or
-    !> recorded evaluation) and damping power (the latter
-    !> only with stiffness damping, else empty), each owned node's mass-damping power (only
-    !> with mass damping, else empty), the power of each loaded node's loads and of each
-    !> prescribed dof's reaction.
-    real(wp), allocatable :: en_cell(:), pw_cell(:), pw_node(:), pe_slot(:), pr_bc(:)
+    !> independent of the partition: each local cell's damping power (only with stiffness
+    !> damping, else empty), each owned node's mass-damping power (only with mass damping,
+    !> else empty), the power of each loaded node's loads and of each prescribed dof's
+    !> reaction.
+    real(wp), allocatable :: pw_cell(:), pw_node(:), pe_slot(:), pr_bc(:)
     !> f_int - f_ext of each prescribed dof at the last committed evaluation: the reactions
     !> less the inertia of the prescribed motion. Moved and checkpointed with the node, as a
     !> node field 'reaction' of width 2 (an integrator's resume evaluates without commit).
@@ -143,7 +145,7 @@ module iem_model
       real(wp), intent(inout), contiguous :: acc(:, :)
       real(wp), intent(out) :: p_ext, p_damp
       logical, intent(in), optional :: commit
-      !> Keep the cells' energies (en_cell) also without commit (default: only with commit
+      !> Sum the cells' energies (en_sum) also without commit (default: only with commit
       !> and energies_due, the accepted states whose energies a history sample reports).
       logical, intent(in), optional :: record
       type(rk4_stage_t), intent(inout), optional :: stage
@@ -280,7 +282,7 @@ contains
     do c = 1, lat%n_cells
       do q = 1, 4
         l = lat%cell_nodes(q, c)
-        if (l <= lat%n_owned) cnt(lat%cell_mat(c), l) = cnt(lat%cell_mat(c), l) + 1
+        if (l <= lat%n_owned) cnt(lat%mat(c), l) = cnt(lat%mat(c), l) + 1
       end do
     end do
     do l = 1, lat%n_owned
@@ -381,16 +383,16 @@ contains
     if (this%beta > 0.0_wp) nd = lat%n_cells
     na = 0
     if (this%alpha > 0.0_wp) na = lat%n_owned
-    allocate(this%en_cell(lat%n_cells), this%pw_cell(nd), this%pw_node(na), &
+    allocate(this%pw_cell(nd), this%pw_node(na), &
              this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), &
              this%r_bc(size(this%bc_node)), stat=ierr)
-    call g%note(ierr, 'the energy terms of the rank', 8.0_wp*(lat%n_cells + nd) + &
+    call g%note(ierr, 'the energy terms of the rank', 8.0_wp*nd + &
                 8.0_wp*(na + 2*size(this%bc_node)))
     if (g%failed) then
       call g%pass(guard)
       return
     end if
-    this%en_cell = 0.0_wp
+    call this%en_sum%reset()
     this%pw_cell = 0.0_wp
     this%pw_node = 0.0_wp
     this%pe_slot = 0.0_wp
@@ -485,9 +487,7 @@ contains
     do l = 1, lat%n_owned
       call sums(1)%add(0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2))
     end do
-    do c = 1, lat%n_cells
-      if (lat%cell_nodes(1, c) <= lat%n_owned) call sums(2)%add(this%en_cell(c))
-    end do
+    sums(2) = this%en_sum
     sums(3) = this%w_ext_acc
     sums(4) = this%w_damp_acc
     if (this%fracture) then

@@ -12,20 +12,21 @@ contains
   !> Documented at its interface in iem_model.f90.
   module procedure model_rate
     real(wp) :: r, a_imp
-    integer :: l, b, ld, comp, n, s, ne, c
-    logical :: changed, accept, keep, timed
+    integer :: l, b, ld, comp, n, s, c
+    logical :: changed, accept, keep, timed, energies
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
-    ne = 0
+    energies = .false.
     keep = .false.
     if (present(commit)) then
-      if (commit .and. this%energies_due) ne = lat%n_cells
+      energies = commit .and. this%energies_due
       keep = commit
     end if
     if (present(record)) then
-      if (record) ne = lat%n_cells
+      if (record) energies = .true.
     end if
+    if (energies) call this%en_sum%reset()
     accept = .false.
     if (present(commit)) accept = commit
     ! the damping powers' terms exist only with that damping (set after init: made once here)
@@ -206,22 +207,38 @@ contains
     end subroutine halo_part
 
     !> The cell forces of the chunks of plan (with at, those of the split's routed chunks),
-    !> summed into fs.
+    !> summed into fs; their cells' energies added to en_sum when the evaluation keeps them.
     subroutine cells(fs, plan, at)
       real(wp), intent(inout), contiguous :: fs(:, :)
       integer, intent(in), contiguous :: plan(:, :)
       integer, intent(in), optional, contiguous :: at(:)
+      if (energies) then
+        call chunks(fs, plan, at, this%en_sum)
+      else
+        call chunks(fs, plan, at)
+      end if
+    end subroutine cells
+
+    !> The kernel's calls of cells, with terms (the energies' exact sum) or without.
+    subroutine chunks(fs, plan, at, terms)
+      real(wp), intent(inout), contiguous :: fs(:, :)
+      integer, intent(in), contiguous :: plan(:, :)
+      integer, intent(in), optional, contiguous :: at(:)
+      type(exact_sum_t), intent(inout), optional :: terms
+      ! no array of the cells' energies: an empty one says so (the kernel then forms no plain
+      ! sum of them either)
+      real(wp) :: none(0)
       if (this%nonlinear) then
         if (this%mixed) then
           call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
-                           lat%cell_mat, this%en_cell(1:ne), this%pw_cell, plan=plan, &
+                           lat%cell_mat, none, this%pw_cell, plan=plan, energy_terms=terms, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
                            side=this%split%side)
         else
           call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, this%nl, accept, &
-                           cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, &
+                           cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
                            plan=plan, add=.true., rows=this%rows, route_at=at, &
                            route=this%split%route, side=this%split%side)
         end if
@@ -229,29 +246,30 @@ contains
         if (this%mixed) then
           call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, commit=accept, ks=this%ks, &
-                           cell_mat=lat%cell_mat, cell_energy=this%en_cell(1:ne), &
+                           cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
                            cell_power=this%pw_cell, fr=this%fr, time=t, plan=plan, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
                            side=this%split%side)
         else
           call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, commit=accept, &
-                           cell_energy=this%en_cell(1:ne), cell_power=this%pw_cell, &
+                           cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
                            fr=this%fr, time=t, plan=plan, add=.true., rows=this%rows, &
                            route_at=at, route=this%split%route, side=this%split%side)
         end if
       else if (this%mixed) then
         call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
                          this%energy, p_damp, this%n_state - 1, ks=this%ks, &
-                         cell_mat=lat%cell_mat, cell_energy=this%en_cell(1:ne), &
+                         cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
                          cell_power=this%pw_cell, plan=plan, add=.true., rows=this%rows, &
                          route_at=at, route=this%split%route, side=this%split%side)
       else
         call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
-                         this%energy, p_damp, this%n_state - 1, cell_energy=this%en_cell(1:ne), &
+                         this%energy, p_damp, this%n_state - 1, cell_energy=none, &
+                         energy_terms=terms, &
                          cell_power=this%pw_cell, plan=plan, add=.true., rows=this%rows, &
                          route_at=at, route=this%split%route, side=this%split%side)
       end if
-    end subroutine cells
+    end subroutine chunks
   end procedure model_rate
 end submodule iem_model_rate

@@ -175,7 +175,7 @@ contains
       do c = 1, lat%n_cells
         do q = 1, 4
           l = lat%cell_nodes(q, c)
-          if (l <= n) this%mk(:, l) = this%mk(:, l) + rowsum(:, q, lat%cell_mat(c))
+          if (l <= n) this%mk(:, l) = this%mk(:, l) + rowsum(:, q, lat%mat(c))
         end do
       end do
       do l = 1, n

@@ -99,7 +99,7 @@ contains
     type(exact_sum_t) :: acc(2)
     integer(i8) :: packed(exact_sum_packed_size, 2)
     real(wp) :: slot(energy_words)
-    integer :: l, c, n, worst
+    integer :: l, c, worst
     call flush_history(this, stat)
     if (stat /= 0) then
       msg = 'writing the history before a checkpoint failed'
@@ -148,7 +148,6 @@ contains
       return
     end if
     ! owned nodes are the registry's first node entities; the counted cells, by global index
-    n = this%lat%n_owned
     cg = counted_cell_gids(this)
     allocate(cells(size(cg)))
     c = 0
@@ -158,7 +157,7 @@ contains
       cells(c) = l
     end do
     call checkpoint_write(trim(this%cfg%run%checkpoint_file), this%comm, h, slot, reg, &
-                          this%lat%gid(1:n), cells, cg, stat, msg)
+                          this%lat%owned_gids(), cells, cg, stat, msg)
     call reg%free()
     if (stat == 0) call log_info('checkpoint: '//trim(this%cfg%run%checkpoint_file)// &
                                  ' at step '//itoa(k)//', t = '//rtoa(t)//' s')
@@ -180,9 +179,9 @@ contains
       call reg%free()
       return
     end if
-    cg = this%lat%cell_gid(1:this%lat%n_cells)
+    cg = this%lat%cell_gids()
     call checkpoint_read(trim(this%cfg%run%restart), this%comm, this%restart, energy, reg, &
-                         this%lat%gid(1:this%lat%n_owned), cg, stat, msg)
+                         this%lat%owned_gids(), cg, stat, msg)
     if (stat /= 0) then
       msg = 'restart: '//msg
       call reg%free()
@@ -247,7 +246,7 @@ contains
       sp_names(k) = this%cfg%probes(this%sp_probe(k))%name
     end do
     call this%out%reopen(trim(this%cfg%run%output_file), this%comm, this%body%n_nodes, &
-      this%body%n_cells, this%lat%gid(1:this%lat%n_owned), counted_cell_gids(this), names, &
+      this%body%n_cells, this%lat%owned_gids(), counted_cell_gids(this), names, &
       sp_names, this%restart%n_samples, this%restart%n_frames, stat, msg)
     if (stat /= 0) return
     this%output_open = .true.

@@ -46,7 +46,8 @@ contains
   !> the springs' arrays, 12 springs a cell, are cell fields of width 12 or 12*depth) and
   !> whether a checkpoint holds it. op_register adds the fields (only the checkpointed ones
   !> when checkpoint); op_in and op_out copy the fields that reg holds in and out.
-  !> Not checkpointed: the cells' energies (the integrator's resume recomputes them).
+  !> Not a field: the strain energy of the last evaluation, an exact sum of the cells' energies
+  !> that the model keeps per rank (model_t's en_sum; the integrator's resume recomputes it).
   subroutine each_field(this, reg, op, checkpoint, stat)
     type(simulation_t), intent(inout) :: this
     type(field_registry_t), intent(inout), target :: reg
@@ -59,7 +60,6 @@ contains
     call real_field('y', centre_node, ns, this%st%y, .true.)
     call real_field('acc', centre_node, ns - 2, this%st%acc, .true.)
     call reaction_field()
-    call real_field('cell_energy', centre_cell, 1, this%model%en_cell, .false.)
     if (this%model%nonlinear) then
       depth = int(this%model%nl%state%depth)
       associate(s => this%model%nl%state)

@@ -36,7 +36,7 @@ contains
     real(wp) :: xy(2), big(2)
     character(len=:), allocatable :: msg2
     mine = huge(1_i8)
-    if (first_bad > 0) mine = this%lat%gid(first_bad)
+    if (first_bad > 0) mine = this%lat%node_gid(first_bad)
     call MPI_Allreduce(mine, first, 1, MPI_INTEGER8, MPI_MIN, this%comm)
     owner = -1
     if (mine == first) owner = this%rank
@@ -53,7 +53,7 @@ contains
     ! where the growth was largest in the last good state
     big = [-1.0_wp, -1.0_wp]
     do l = 1, this%lat%n_owned
-      if (norm2(good(3:4, l)) > big(1)) big = [norm2(good(3:4, l)), real(this%lat%gid(l), wp)]
+      if (norm2(good(3:4, l)) > big(1)) big = [norm2(good(3:4, l)), real(this%lat%node_gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, big, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
     xy = node_place(this%lat, this%comm, int(big(2), i8))
@@ -82,7 +82,7 @@ contains
     fast = [-1.0_wp, -1.0_wp]
     do l = 1, this%lat%n_owned
       if (norm2(this%st%y(3:4, l)) > fast(1)) fast = [norm2(this%st%y(3:4, l)), &
-                                                       real(this%lat%gid(l), wp)]
+                                                       real(this%lat%node_gid(l), wp)]
     end do
     call MPI_Allreduce(MPI_IN_PLACE, fast, 1, MPI_2DOUBLE_PRECISION, MPI_MAXLOC, this%comm)
     xy = node_place(this%lat, this%comm, int(fast(2), i8))

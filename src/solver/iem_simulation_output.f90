@@ -49,7 +49,7 @@ contains
     integer(i8), allocatable :: cells(:, :), cell_gids(:), material(:)
     real(wp), allocatable :: coords(:, :)
     character(len=:), allocatable :: material_names
-    integer :: k, l, nc, ierr
+    integer :: k, l, nc, ierr, q
     integer(i8) :: nodes(4)
     type(alloc_guard_t) :: guard
 
@@ -63,7 +63,7 @@ contains
     end associate
     call this%out%create(trim(this%cfg%run%output_file), this%comm, this%cfg%run%overwrite, &
       iem_version, trim(this%cfg%input_file), this%cfg%input_text, trim(this%cfg%run%analysis), &
-      this%body%n_nodes, this%body%n_cells, this%lat%gid(1:this%lat%n_owned), names, pxy, &
+      this%body%n_nodes, this%body%n_cells, this%lat%owned_gids(), names, pxy, &
       this%probe_gid, nxy, stat, msg)
     if (stat /= 0) return
     this%output_open = .true.
@@ -87,10 +87,10 @@ contains
     do l = 1, this%lat%n_cells
       if (.not. this%lat%cell_counted(l)) cycle
       k = k + 1
-      nodes = this%lat%gid(this%lat%cell_nodes(:, l))
+      nodes = [(this%lat%node_gid(this%lat%cell_nodes(q, l)), q = 1, 4)]
       cells(:, k) = nodes
       cell_gids(k) = this%lat%cell_gid(l)
-      material(k) = this%lat%cell_mat(l)
+      material(k) = this%lat%mat(l)
     end do
     material_names = ''
     do k = 1, size(this%cfg%materials)
@@ -359,7 +359,7 @@ contains
       do c = 1, lat%n_cells
         if (.not. lat%cell_counted(c)) cycle
         k = k + 1
-        if (this%model%mixed) mt = lat%cell_mat(c)
+        if (this%model%mixed) mt = lat%mat(c)
         do q = 1, 4
           fe(q) = edge_factor(fr%laws(mt), fr%kappa(:, c), q)
           fs(q) = shear_factor(fr%laws(mt), fr%kappa(:, c), q)

@@ -18,7 +18,7 @@ contains
   module procedure repartition_run
     type(field_registry_t), target :: reg
     integer(i8), allocatable :: old_owned(:), n_selected(:)
-    type(exact_sum_t) :: w_ext, w_damp
+    type(exact_sum_t) :: w_ext, w_damp, en
     type(alloc_guard_t) :: guard
     integer :: ns, l, k2, moved(1), ierr
 
@@ -30,7 +30,7 @@ contains
       msg = 'repartition at step '//itoa(k)//': registering the fields failed'
       return
     end if
-    old_owned = this%lat%gid(1:this%lat%n_owned)
+    old_owned = this%lat%owned_gids()
 
     ! the new partition: the bisection with the nodes of the left half of the grid ten times
     ! heavier than the rest, so that many nodes change rank (the costs that load balancing
@@ -42,9 +42,11 @@ contains
       return
     end if
 
-    ! rebuild what derives from the lattice; the work done so far stays with the ranks
+    ! rebuild what derives from the lattice; the work done so far and the strain energy of
+    ! the last evaluation stay with the ranks (exact sums: their global sums are unchanged)
     w_ext = this%model%w_ext_acc
     w_damp = this%model%w_damp_acc
+    en = this%model%en_sum
     allocate(n_selected(size(this%cfg%bcs) + size(this%cfg%loads)))
     this%model = model_t()
     call this%model%init(this%cfg, this%body, this%lat, n_selected, guard)
@@ -56,13 +58,14 @@ contains
     if (stat /= 0) return
     this%model%w_ext_acc = w_ext
     this%model%w_damp_acc = w_damp
+    this%model%en_sum = en
     ! copy the fields back into the new model and state
     call state_from_registry(this, reg)
     call this%model%prescribe(this%st%y, real(k, wp)*this%dt)
     ! the halo columns of y are refreshed by the next force evaluation's exchange; Verlet's
     ! step uses only owned values before it
     do k2 = 1, size(this%probe_gid)
-      this%probe_local(k2) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k2), 1)
+      this%probe_local(k2) = this%lat%local_of(this%probe_gid(k2))
     end do
     do k2 = 1, size(this%sp_cell)
       this%sp_local(k2) = 0
@@ -80,7 +83,7 @@ contains
         return
       end if
     end if
-    call this%out%set_owned(this%lat%gid(1:this%lat%n_owned), counted_cell_gids(this), &
+    call this%out%set_owned(this%lat%owned_gids(), counted_cell_gids(this), &
                             stat, msg)
     if (stat /= 0) return
     ! nodes that came from another rank (both lists ascending)
@@ -88,12 +91,12 @@ contains
     l = 1
     do k2 = 1, this%lat%n_owned
       do while (l <= size(old_owned))
-        if (old_owned(l) >= this%lat%gid(k2)) exit
+        if (old_owned(l) >= this%lat%node_gid(k2)) exit
         l = l + 1
       end do
       if (l > size(old_owned)) then
         moved = moved + 1
-      else if (old_owned(l) /= this%lat%gid(k2)) then
+      else if (old_owned(l) /= this%lat%node_gid(k2)) then
         moved = moved + 1
       end if
     end do

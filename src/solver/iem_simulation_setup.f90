@@ -187,7 +187,7 @@ contains
     do k = 1, np
       this%probe_gid(k) = nearest_node(this%grid, this%lat, comm, cfg%probes(k)%x, &
                                        cfg%probes(k)%y)
-      this%probe_local(k) = findloc(this%lat%gid(1:this%lat%n_owned), this%probe_gid(k), 1)
+      this%probe_local(k) = this%lat%local_of(this%probe_gid(k))
     end do
 
     ! spring probes: the cell that holds the point (the last cell on the far edges)

@@ -20,6 +20,7 @@ module iem_cell_kernel
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
   use iem_prefetch, only: prefetch
+  use iem_exact_sum, only: exact_sum_t
   implicit none
   private
   public :: cell_energy, cell_force, cell_forces, cell_strain_measures, cell_chunks
@@ -99,12 +100,13 @@ contains
   !> material's nonlinear law); k then gives only the geometry (lx, ly, il0), the same for all.
   !> With cell_energy and cell_power (one entry a cell; an empty array: not kept), each
   !> cell's energy and (when beta > 0) damping power are also stored (for sums that do not
-  !> depend on how the cells are split among ranks). With fr (fracture) the cells whose damage
+  !> depend on how the cells are split among ranks); with energy_terms the counted cells'
+  !> energies are added to that exact sum instead (the same sums without an array). With fr (fracture) the cells whose damage
   !> has begun or begins follow the damaged law, and with commit their damage is committed at
   !> time (iem_fracture_kernel).
   pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
                               nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, plan, &
-                              add, rows, route_at, route, side)
+                              add, rows, route_at, route, side, energy_terms)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in), contiguous :: cell_nodes(:, :)
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
@@ -133,6 +135,8 @@ contains
     !> stored in side(:, r), < 0 dropped; route_at(j) = 0: added to f as usual.
     integer, intent(in), optional, contiguous :: route_at(:), route(:)
     real(wp), intent(inout), optional, contiguous :: side(:, :)
+    !> The exact sum the counted cells' energies are added to (then energy is 0).
+    type(exact_sum_t), intent(inout), optional :: energy_terms
     ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
     ! (w) and, with filtered damping, the velocities (p)
     integer :: bn(0:chunk), tn(0:chunk)
@@ -153,6 +157,7 @@ contains
     logical :: dmg(chunk), counted(chunk)
     integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
+    logical :: keep_terms
     logical :: lean, intact
     real(wp) :: onset(3), lc1(5)
     integer(i8) :: n_past
@@ -182,10 +187,11 @@ contains
     ud = 0.0_wp
     pw = 0.0_wp
     ! the energy summed over the counted cells: only when the cells' energies are not asked for
-    sums = .not. present(cell_energy)
+    keep_terms = present(energy_terms)
+    sums = .not. (present(cell_energy) .or. keep_terms)
     ! the cells' energies (and the elastic cells' strains and shear measures) are formed only
     ! when asked for
-    lean = .not. (sums .or. keep_energy)
+    lean = .not. (sums .or. keep_energy .or. keep_terms)
     onset = huge(1.0_wp)
     if (present(fr)) onset = fr%onset_min
     if (present(add)) then
@@ -336,7 +342,7 @@ contains
       else
         call add_node_forces(m, bn, tn, fx, fy, f)
       end if
-      if (sums .or. damped) then
+      if (sums .or. damped .or. keep_terms) then
         ! the counted cells: those whose first corner is owned
         if (consec) then
           do i = 1, m
@@ -355,6 +361,11 @@ contains
         do i = 1, m
           if (counted(i)) damp_power = damp_power + pw(i)
         end do
+        if (keep_terms) then
+          do i = 1, m
+            if (counted(i)) call energy_terms%add(en(i))
+          end do
+        end if
       end if
       if (keep_energy) cell_energy(c0:c0 + m - 1) = en(1:m)
       if (keep_power) cell_power(c0:c0 + m - 1) = pw(1:m)
