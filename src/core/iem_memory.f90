@@ -16,10 +16,12 @@ module iem_memory
   !> Bytes of the arrays every run holds, per local node or cell (the values behind the
   !> estimate; docs/benchmarks.md has the measured totals).
   !> The lattice: its owned nodes' numbers and grid indices and its cells' numbers are runs
-  !> along the grid rows (none a node or cell; the few halo nodes' are not counted); a cell's
-  !> 4 corners, material (only with several materials; counted always) and open edges.
+  !> along the grid rows, its cells' corners chunks listed only where their node rows are
+  !> not consecutive (none a node or cell; the few halo nodes and the cells beside them are
+  !> not counted); a cell's material (only with several materials; counted always) and open
+  !> edges.
   real(wp), parameter, public :: lattice_node_bytes = 0.0_wp
-  real(wp), parameter, public :: lattice_cell_bytes = 21.0_wp
+  real(wp), parameter, public :: lattice_cell_bytes = 5.0_wp
   real(wp), parameter, public :: model_node_bytes = 24.0_wp    ! lumped mass, summed forces (2)
   !> Velocity Verlet with 4 values a node sums the forces into its rates array: no forces.
   real(wp), parameter :: verlet_forces_bytes = 16.0_wp

@@ -7,6 +7,7 @@
 module iem_local_lattice
   use, intrinsic :: iso_fortran_env, only: int8
   use iem_kinds, only: wp, ip, i8
+  use iem_cell_table, only: cell_table_t, max_chunk
   implicit none
   private
   public :: local_lattice_t
@@ -20,14 +21,18 @@ module iem_local_lattice
     !> runs in ascending order of number. Read them with node_gid, node_ij, local_of.
     integer :: n_runs = 0
     integer, allocatable :: run_first(:), run_i(:), run_j(:)
+    !> Runs per owned node and runs per cell (set with the runs: run_holding's first guess).
+    real(wp) :: run_scale = 0.0_wp, cell_run_scale = 0.0_wp
     integer(i8), allocatable :: run_gid(:)
     !> The halo nodes' global numbers and grid indices (node n_owned + k is halo node k).
     integer(i8), allocatable :: halo_gid(:)
     integer, allocatable :: halo_ij(:, :)
     !> The grid's cell sizes: a node's reference coordinates are (i lx, j ly) (node_xy).
     real(wp) :: lx = 0.0_wp, ly = 0.0_wp
-    !> Local corner nodes of each local cell, counter-clockwise from lower left.
-    integer(ip), allocatable :: cell_nodes(:, :)
+    !> The local cells in the force kernel's chunks, with their local corner nodes
+    !> (counter-clockwise from lower left; iem_cell_table: listed only for the chunks whose
+    !> node rows are not numbered consecutively). Read a cell's with cell_nodes or corners.
+    type(cell_table_t) :: cells
     !> The local cells in runs of consecutive global numbers: run r holds the cells
     !> cell_run_first(r) .. cell_run_first(r + 1) - 1 (cell_run_first(n_cell_runs + 1) =
     !> n_cells + 1), numbered from cell_run_gid(r) on. Read them with cell_gid, cell_local_of.
@@ -54,7 +59,11 @@ module iem_local_lattice
     procedure :: cell_gid => local_lattice_cell_gid
     procedure :: cell_gids => local_lattice_cell_gids
     procedure :: cell_local_of => local_lattice_cell_local_of
+    procedure :: set_scales => local_lattice_set_scales
     procedure :: mat => local_lattice_mat
+    procedure :: cell_nodes => local_lattice_cell_nodes
+    procedure :: corners => local_lattice_corners
+    procedure :: first_corners => local_lattice_first_corners
     procedure :: cell_counted => local_lattice_cell_counted
     procedure :: n_counted => local_lattice_n_counted
     procedure :: edge_open => local_lattice_edge_open
@@ -130,7 +139,7 @@ contains
     class(local_lattice_t), intent(in) :: this
     integer, intent(in) :: c
     integer :: r
-    r = last_at_or_below(this%cell_run_first(1:this%n_cell_runs), c)
+    r = run_holding(this%cell_run_first, this%n_cell_runs, this%cell_run_scale, c)
     g = this%cell_run_gid(r) + (c - this%cell_run_first(r))
   end function local_lattice_cell_gid
 
@@ -159,6 +168,21 @@ contains
     if (g - this%cell_run_gid(r) < this%cell_run_first(r + 1) - this%cell_run_first(r)) &
       c = this%cell_run_first(r) + int(g - this%cell_run_gid(r))
   end function local_lattice_cell_local_of
+
+  !> The run r (1..n) that holds item k of runs that start at first(r) (first(1) = 1, first(n + 1)
+  !> past the last item), scale being n over the number of items: runs of equal length (a
+  !> rectangle's rows) are found at the first guess, others by bisection on its side.
+  pure integer function run_holding(first, n, scale, k) result(r)
+    integer, intent(in) :: first(:), n, k
+    real(wp), intent(in) :: scale
+    r = 1 + int(real(k - 1, wp)*scale)
+    r = min(max(r, 1), n)
+    if (first(r) > k) then
+      r = last_at_or_below(first(1:r - 1), k)
+    else if (first(r + 1) <= k) then
+      r = r + last_at_or_below(first(r + 1:n), k)
+    end if
+  end function run_holding
 
   !> The position of the last element of the ascending list a that is at most x (a(1) <= x).
   pure integer function last_at_or_below(a, x) result(lo)
@@ -196,7 +220,7 @@ contains
   pure integer function run_of(this, l) result(r)
     class(local_lattice_t), intent(in) :: this
     integer, intent(in) :: l
-    r = last_at_or_below(this%run_first(1:this%n_runs), l)
+    r = run_holding(this%run_first, this%n_runs, this%run_scale, l)
   end function run_of
 
   !> Material (1..) of local cell c.
@@ -207,18 +231,55 @@ contains
     if (this%mixed) m = this%cell_mat(c)
   end function local_lattice_mat
 
+  !> Local corner node q (1..4, counter-clockwise from the lower left) of local cell c.
+  pure integer function local_lattice_cell_nodes(this, q, c) result(l)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: q, c
+    l = this%cells%corner(q, c)
+  end function local_lattice_cell_nodes
+
+  !> The four local corner nodes of local cell c (counter-clockwise from the lower left).
+  pure function local_lattice_corners(this, c) result(q)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: c
+    integer :: q(4)
+    q = this%cells%corners_of(c)
+  end function local_lattice_corners
+
+  !> The first corners fc(1:m) of the m cells of chunk j of cells (first cell cells%chunks(1,
+  !> j)): the loops over all cells in cell order walk the chunks with it.
+  pure subroutine local_lattice_first_corners(this, j, fc, m)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: j
+    integer, intent(out) :: fc(:), m
+    integer :: i
+    m = this%cells%chunks(2, j)
+    if (this%cells%chunks(3, j) == 1) then
+      do i = 1, m
+        fc(i) = this%cells%chunks(4, j) + i - 1
+      end do
+    else
+      fc(1:m) = this%cells%corners(1, this%cells%chunks(6, j):this%cells%chunks(6, j) + m - 1)
+    end if
+  end subroutine local_lattice_first_corners
+
   !> True for the cells this rank counts in global sums and writes: those whose first corner
   !> it owns (each cell is counted by exactly one rank).
   pure logical function local_lattice_cell_counted(this, c) result(counted)
     class(local_lattice_t), intent(in) :: this
     integer, intent(in) :: c
-    counted = this%cell_nodes(1, c) <= this%n_owned
+    counted = this%cells%corner(1, c) <= this%n_owned
   end function local_lattice_cell_counted
 
   !> Number of cells this rank counts.
   pure integer function local_lattice_n_counted(this) result(n)
     class(local_lattice_t), intent(in) :: this
-    n = count(this%cell_nodes(1, 1:this%n_cells) <= this%n_owned)
+    integer :: j, m, fc(max_chunk)
+    n = 0
+    do j = 1, this%cells%n_chunks()
+      call this%first_corners(j, fc, m)
+      n = n + count(fc(1:m) <= this%n_owned)
+    end do
   end function local_lattice_n_counted
 
   !> True when edge q (1 bottom, 2 right, 3 top, 4 left) of local cell c is on the boundary.
@@ -228,6 +289,13 @@ contains
     open = btest(this%cell_open(c), q - 1)
   end function local_lattice_edge_open
 
+  !> Set the runs' scales (run_holding) once the runs are made.
+  pure subroutine local_lattice_set_scales(this)
+    class(local_lattice_t), intent(inout) :: this
+    this%run_scale = real(this%n_runs, wp)/max(this%n_owned, 1)
+    this%cell_run_scale = real(this%n_cell_runs, wp)/max(this%n_cells, 1)
+  end subroutine local_lattice_set_scales
+
   !> Release all arrays.
   subroutine local_lattice_free(this)
     class(local_lattice_t), intent(inout) :: this
@@ -235,7 +303,7 @@ contains
     if (allocated(this%halo_gid)) deallocate(this%halo_gid)
     if (allocated(this%halo_ij)) deallocate(this%halo_ij)
     this%n_runs = 0
-    if (allocated(this%cell_nodes)) deallocate(this%cell_nodes)
+    call this%cells%free()
     if (allocated(this%cell_run_first)) deallocate(this%cell_run_first, this%cell_run_gid)
     this%n_cell_runs = 0
     if (allocated(this%cell_mat)) deallocate(this%cell_mat)

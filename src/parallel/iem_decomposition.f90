@@ -13,6 +13,7 @@ module iem_decomposition
   use iem_body_numbering, only: body_strip_t, classify_strip, strip_points, left_counts, &
                                 agree_first, node_weight
   use iem_local_lattice, only: local_lattice_t
+  use iem_cell_table, only: cell_table
   use iem_halo, only: halo_t
   use iem_rcb, only: rcb_t
   use iem_alloc_guard, only: alloc_guard_t
@@ -127,7 +128,7 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     integer(int8), allocatable :: mat(:, :), src(:, :)
     integer(i8), allocatable :: nid(:, :), keys(:), hits(:), cells(:)
-    integer(ip), allocatable :: lmap(:, :)
+    integer(ip), allocatable :: lmap(:, :), cn(:, :)
     integer(i8) :: g, c, nn, pg
     integer :: i0, i1, j0, j1, a0, a1, b0, b1, r0, i, j, q, k, l, n_owned, n_halo, n_cells
     integer :: ierr, nx, ny, n_runs, r, pi, pj
@@ -215,7 +216,7 @@ contains
     end do
     allocate(keys(n_halo), lat%run_first(n_runs + 1), lat%run_i(n_runs), lat%run_j(n_runs), &
              lat%run_gid(n_runs), lat%halo_gid(n_halo), lat%halo_ij(2, n_halo), &
-             own(n_owned + n_halo), lat%cell_nodes(4, n_cells), &
+             own(n_owned + n_halo), cn(4, n_cells), &
              lat%cell_run_first(max(0, min(j1, ny - 1) - b0 + 1) + 1), &
              lat%cell_run_gid(max(0, min(j1, ny - 1) - b0 + 1)), &
              lat%cell_mat(merge(n_cells, 0, lat%mixed)), lat%cell_open(n_cells), stat=ierr)
@@ -292,7 +293,7 @@ contains
         end if
         pg = c
         c = c + 1
-        lat%cell_nodes(:, k) = [(lmap(i + ci(q), j + cj(q)), q = 1, 4)]
+        cn(:, k) = [(lmap(i + ci(q), j + cj(q)), q = 1, 4)]
         if (lat%mixed) lat%cell_mat(k) = mat(i, j)
         lat%cell_open(k) = 0_int8
         do q = 1, 4
@@ -306,6 +307,9 @@ contains
     end do
     lat%n_cell_runs = r
     lat%cell_run_first(r + 1) = n_cells + 1
+    call lat%set_scales()
+    ! the cells' corners as the force kernel's chunks (listed only where not consecutive)
+    lat%cells = cell_table(cn)
   end subroutine build_local_window
 
   !> Position of key in the ascending list keys (which holds it).
@@ -338,7 +342,7 @@ contains
     integer(ip), allocatable :: recv_first(:), send_first(:), send_node(:), cnt(:), pos(:)
     integer, allocatable :: nb_of(:)
     logical, allocatable :: sends(:, :)
-    integer :: nb, k, l, q, p, c, r
+    integer :: nb, k, l, q, p, c, r, corner(4)
 
     ! neighbours = owners of halo nodes, in the order the halo is sorted (by owner)
     nb = 0
@@ -372,11 +376,11 @@ contains
     allocate(sends(lat%n_owned, nb))
     sends = .false.
     do c = 1, lat%n_cells
+      corner = lat%corners(c)
       do q = 1, 4
-        if (nb_of(lat%cell_nodes(q, c)) == 0) cycle
+        if (nb_of(corner(q)) == 0) cycle
         do p = 1, 4
-          if (lat%cell_nodes(p, c) <= lat%n_owned) sends(lat%cell_nodes(p, c), &
-                                                         nb_of(lat%cell_nodes(q, c))) = .true.
+          if (corner(p) <= lat%n_owned) sends(corner(p), nb_of(corner(q))) = .true.
         end do
       end do
     end do

@@ -7,9 +7,10 @@ module iem_model
   use iem_grid, only: grid_t
   use iem_body, only: body_t
   use iem_local_lattice, only: local_lattice_t
+  use iem_cell_table, only: max_chunk
   use iem_node_sets, only: select_nodes
   use iem_spring_constants, only: cell_constants_t, cell_constants
-  use iem_cell_kernel, only: cell_forces, cell_chunks, kernel_rows
+  use iem_cell_kernel, only: cell_forces, kernel_rows
   use iem_cell_chunk, only: edge_row_t
   use iem_cell_split, only: cell_split_t
   use iem_halo, only: halo_t
@@ -73,9 +74,8 @@ module iem_model
     !> (n_local columns, all zero on entry: its first kick clears what it reads) and the pass
     !> turns them into the accelerations in place; no separate force array.
     logical :: sum_in_acc = .false.
-    !> The chunks of the local cell list for the force kernel (iem_cell_kernel's cell_chunks).
-    integer, allocatable :: plan(:, :)
-    !> The interior and boundary chunks, for evaluations that overlap the halo exchange.
+    !> The interior and boundary chunks, for evaluations that overlap the halo exchange (the
+    !> evaluations without it walk the lattice's own chunks, lat%cells).
     type(cell_split_t) :: split
     !> The force kernel's work space (its node rows, about 200 kB).
     type(edge_row_t), allocatable :: rows(:)
@@ -177,7 +177,7 @@ contains
     type(local_lattice_t), intent(in) :: lat
     integer(i8), intent(out) :: n_selected(:)
     type(alloc_guard_t), intent(inout), optional :: guard
-    integer :: l, q, b, n, c, ld, ierr, mt, nm, nd, na, nf
+    integer :: l, q, b, n, c, ld, ierr, mt, nm, nd, na, nf, corner(4)
     integer, allocatable :: cnt(:, :)
     logical, allocatable :: taken(:, :), mask(:)
     real(wp), allocatable :: weight(:), mcell(:)
@@ -280,8 +280,9 @@ contains
     ! lumped masses: a quarter of each cell at each corner, by material
     cnt = 0
     do c = 1, lat%n_cells
+      corner = lat%corners(c)
       do q = 1, 4
-        l = lat%cell_nodes(q, c)
+        l = corner(q)
         if (l <= lat%n_owned) cnt(lat%mat(c), l) = cnt(lat%mat(c), l) + 1
       end do
     end do
@@ -374,8 +375,7 @@ contains
       end do
     end do
     call index_loaded_nodes(this, lat%n_owned)
-    this%plan = cell_chunks(lat%cell_nodes)
-    call this%split%init(lat%cell_nodes, lat%n_owned, lat%n_local)
+    call this%split%init(lat%cells, lat%n_owned, lat%n_local)
     this%rows = kernel_rows()
     allocate(this%f_bc(size(this%bc_node)))
     ! the damping powers only with that damping
@@ -455,7 +455,7 @@ contains
     class(model_t), intent(inout) :: this
     type(local_lattice_t), intent(in) :: lat
     real(wp), intent(in) :: wdt
-    integer :: c, l, n
+    integer :: c, l, n, j, m, c0, fc(max_chunk)
     do n = 1, size(this%pe_slot)
       call this%w_ext_acc%add(wdt*this%pe_slot(n))
     end do
@@ -463,8 +463,13 @@ contains
       call this%w_ext_acc%add(wdt*this%pr_bc(n))
     end do
     if (this%beta > 0.0_wp) then
-      do c = 1, lat%n_cells
-        if (lat%cell_nodes(1, c) <= lat%n_owned) call this%w_damp_acc%add(wdt*this%pw_cell(c))
+      ! the counted cells (first corner owned), in cell order
+      do j = 1, lat%cells%n_chunks()
+        call lat%first_corners(j, fc, m)
+        c0 = lat%cells%chunks(1, j) - 1
+        do c = 1, m
+          if (fc(c) <= lat%n_owned) call this%w_damp_acc%add(wdt*this%pw_cell(c0 + c))
+        end do
       end do
     end if
     if (this%alpha > 0.0_wp) then
@@ -483,7 +488,7 @@ contains
     type(local_lattice_t), intent(in) :: lat
     real(wp), intent(in) :: y(:, :)
     type(exact_sum_t), intent(out) :: sums(5)
-    integer :: l, c
+    integer :: l, c, j, m, c0, fc(max_chunk)
     do l = 1, lat%n_owned
       call sums(1)%add(0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2))
     end do
@@ -491,8 +496,12 @@ contains
     sums(3) = this%w_ext_acc
     sums(4) = this%w_damp_acc
     if (this%fracture) then
-      do c = 1, lat%n_cells
-        if (lat%cell_nodes(1, c) <= lat%n_owned) call sums(5)%add(this%fr%diss(c))
+      do j = 1, lat%cells%n_chunks()
+        call lat%first_corners(j, fc, m)
+        c0 = lat%cells%chunks(1, j) - 1
+        do c = 1, m
+          if (fc(c) <= lat%n_owned) call sums(5)%add(this%fr%diss(c0 + c))
+        end do
       end do
     end if
   end subroutine model_energy_sums

@@ -5,6 +5,7 @@ submodule (iem_model) iem_model_rate
   use mpi_f08, only: MPI_Wait, MPI_STATUS_IGNORE, MPI_F_sync_reg
   use iem_timers, only: timer_switch, t_force, t_halo, t_update
   use iem_node_pass, only: accelerations_in_place
+  use iem_cell_table, only: cell_table_t
   implicit none
 
 contains
@@ -12,7 +13,7 @@ contains
   !> Documented at its interface in iem_model.f90.
   module procedure model_rate
     real(wp) :: r, a_imp
-    integer :: l, b, ld, comp, n, s, c
+    integer :: l, b, ld, comp, n, s, c, j, m, c0, fc(max_chunk)
     logical :: changed, accept, keep, timed, energies
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
@@ -54,22 +55,26 @@ contains
       real(wp), intent(inout), contiguous :: fs(:, :)
       ! fs holds zeros here (the node passes below clear what they read)
       if (.not. present(halo)) then
-        call cells(fs, this%plan)
+        call cells(fs, lat%cells)
       else if (.not. this%split%active) then
         call halo_part(1)
-        call cells(fs, this%plan)
+        call cells(fs, lat%cells)
       else
         ! the interior cells while the halo values travel, then the boundary cells; the nodes
         ! of D get their cells' forces summed in cell order; so does the damping power
         call halo_part(2)
-        call cells(fs, this%split%plan_in, this%split%at_in)
+        call cells(fs, this%split%cells_in, this%split%at_in)
         call halo_part(3)
-        call cells(fs, this%split%plan_bd, this%split%at_bd)
+        call cells(fs, this%split%cells_bd, this%split%at_bd)
         call this%split%sum_side(fs)
         p_damp = 0.0_wp
         if (this%beta > 0.0_wp) then
-          do c = 1, lat%n_cells
-            if (lat%cell_nodes(1, c) <= lat%n_owned) p_damp = p_damp + this%pw_cell(c)
+          do j = 1, lat%cells%n_chunks()
+            call lat%first_corners(j, fc, m)
+            c0 = lat%cells%chunks(1, j) - 1
+            do c = 1, m
+              if (fc(c) <= lat%n_owned) p_damp = p_damp + this%pw_cell(c0 + c)
+            end do
           end do
         end if
       end if
@@ -206,23 +211,23 @@ contains
       if (switched) call timer_switch(t_halo, t_force)
     end subroutine halo_part
 
-    !> The cell forces of the chunks of plan (with at, those of the split's routed chunks),
+    !> The cell forces of the chunks of table (with at, those of the split's routed chunks),
     !> summed into fs; their cells' energies added to en_sum when the evaluation keeps them.
-    subroutine cells(fs, plan, at)
+    subroutine cells(fs, table, at)
       real(wp), intent(inout), contiguous :: fs(:, :)
-      integer, intent(in), contiguous :: plan(:, :)
+      type(cell_table_t), intent(in) :: table
       integer, intent(in), optional, contiguous :: at(:)
       if (energies) then
-        call chunks(fs, plan, at, this%en_sum)
+        call chunks(fs, table, at, this%en_sum)
       else
-        call chunks(fs, plan, at)
+        call chunks(fs, table, at)
       end if
     end subroutine cells
 
     !> The kernel's calls of cells, with terms (the energies' exact sum) or without.
-    subroutine chunks(fs, plan, at, terms)
+    subroutine chunks(fs, table, at, terms)
       real(wp), intent(inout), contiguous :: fs(:, :)
-      integer, intent(in), contiguous :: plan(:, :)
+      type(cell_table_t), intent(in) :: table
       integer, intent(in), optional, contiguous :: at(:)
       type(exact_sum_t), intent(inout), optional :: terms
       ! no array of the cells' energies: an empty one says so (the kernel then forms no plain
@@ -230,44 +235,44 @@ contains
       real(wp) :: none(0)
       if (this%nonlinear) then
         if (this%mixed) then
-          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
+          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
-                           lat%cell_mat, none, this%pw_cell, plan=plan, energy_terms=terms, &
+                           lat%cell_mat, none, this%pw_cell, energy_terms=terms, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
                            side=this%split%side)
         else
-          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
+          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, this%nl, accept, &
                            cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
-                           plan=plan, add=.true., rows=this%rows, route_at=at, &
+                           add=.true., rows=this%rows, route_at=at, &
                            route=this%split%route, side=this%split%side)
         end if
       else if (this%fracture) then
         if (this%mixed) then
-          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
+          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, commit=accept, ks=this%ks, &
                            cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
-                           cell_power=this%pw_cell, fr=this%fr, time=t, plan=plan, &
+                           cell_power=this%pw_cell, fr=this%fr, time=t, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
                            side=this%split%side)
         else
-          call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
+          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                            this%energy, p_damp, this%n_state - 1, commit=accept, &
                            cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
-                           fr=this%fr, time=t, plan=plan, add=.true., rows=this%rows, &
+                           fr=this%fr, time=t, add=.true., rows=this%rows, &
                            route_at=at, route=this%split%route, side=this%split%side)
         end if
       else if (this%mixed) then
-        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
+        call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                          this%energy, p_damp, this%n_state - 1, ks=this%ks, &
                          cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
-                         cell_power=this%pw_cell, plan=plan, add=.true., rows=this%rows, &
+                         cell_power=this%pw_cell, add=.true., rows=this%rows, &
                          route_at=at, route=this%split%route, side=this%split%side)
       else
-        call cell_forces(this%k, lat%cell_nodes, lat%n_owned, y, this%beta, fs, &
+        call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                          this%energy, p_damp, this%n_state - 1, cell_energy=none, &
                          energy_terms=terms, &
-                         cell_power=this%pw_cell, plan=plan, add=.true., rows=this%rows, &
+                         cell_power=this%pw_cell, add=.true., rows=this%rows, &
                          route_at=at, route=this%split%route, side=this%split%side)
       end if
     end subroutine chunks

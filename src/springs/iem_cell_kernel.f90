@@ -21,9 +21,10 @@ module iem_cell_kernel
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
   use iem_prefetch, only: prefetch
   use iem_exact_sum, only: exact_sum_t
+  use iem_cell_table, only: cell_table_t, cell_table
   implicit none
   private
-  public :: cell_energy, cell_force, cell_forces, cell_strain_measures, cell_chunks
+  public :: cell_energy, cell_force, cell_forces, cell_strain_measures
   public :: kernel_rows
 
   !> Node rows the kernel keeps for reuse by the chunk above (a rank's row of up to 64 chunks,
@@ -78,21 +79,22 @@ contains
     real(wp) :: y(4, 4)
     y(1:2, :) = u
     y(3:4, :) = v
-    call cell_forces(k, nodes, 4, y, beta, f, energy, damp_power)
+    call cell_forces(k, cell_table(nodes), 4, y, beta, f, energy, damp_power)
   end subroutine cell_force
+
   !> Nodal forces f(2, :) (internal + stiffness damping; added to f with add) of many cells
-  !> for the state y(4, :) = (u, v) of the nodes listed in cell_nodes, with the strain
+  !> for the state y(4, :) = (u, v) of the corner nodes that cells lists, with the strain
   !> energy (only when cell_energy is absent, else 0) and the damping power summed over the
   !> counted cells (those whose first corner is among the first n_owned nodes). Each node's
-  !> force is summed over its cells in the order of cell_nodes' columns, and each cell's
+  !> force is summed over its cells in the order of their numbers, and each cell's
   !> corner forces depend on its corners' values only, so the same cells in the same order
   !> give bitwise the same forces whatever else the list holds. Cells go in the chunks of
-  !> plan (cell_chunks: consecutive cells of a grid row); docs/architecture.md, "The force
+  !> cells (iem_cell_table: consecutive cells of a grid row); docs/architecture.md, "The force
   !> kernel", says how a chunk is evaluated.
   !> The stiffness damping acts on the velocities in rows damp_row:damp_row+1 of y (default 3,
   !> the velocities themselves; 5 for the filtered velocities of capped damping); the damping
   !> power is always taken with the velocities (rows 3:4). With nl (nonlinear springs of the
-  !> paper's cell, one set per column of cell_nodes) the springs follow their Masing law from
+  !> paper's cell, one set per cell of the table) the springs follow their Masing law from
   !> their committed state; with commit = .true. this state y is accepted: every spring's
   !> history moves to it. The energy is then the work done on the springs (stored plus
   !> dissipated), and stiffness damping uses the initial (elastic) stiffness. With ks and
@@ -101,14 +103,15 @@ contains
   !> With cell_energy and cell_power (one entry a cell; an empty array: not kept), each
   !> cell's energy and (when beta > 0) damping power are also stored (for sums that do not
   !> depend on how the cells are split among ranks); with energy_terms the counted cells'
-  !> energies are added to that exact sum instead (the same sums without an array). With fr (fracture) the cells whose damage
-  !> has begun or begins follow the damaged law, and with commit their damage is committed at
-  !> time (iem_fracture_kernel).
-  pure subroutine cell_forces(k, cell_nodes, n_owned, y, beta, f, energy, damp_power, damp_row, &
-                              nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, plan, &
+  !> energies are added to that exact sum instead (the same sums without an array). With fr
+  !> (fracture) the cells whose damage has begun or begins follow the damaged law, and with
+  !> commit their damage is committed at time (iem_fracture_kernel).
+  pure subroutine cell_forces(k, cells, n_owned, y, beta, f, energy, damp_power, damp_row, &
+                              nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, &
                               add, rows, route_at, route, side, energy_terms)
     type(cell_constants_t), intent(in) :: k
-    integer, intent(in), contiguous :: cell_nodes(:, :)
+    !> The cells, in chunks, with their corners.
+    type(cell_table_t), intent(in) :: cells
     !> A cell is counted when its first corner is one of the nodes 1..n_owned.
     integer, intent(in) :: n_owned
     real(wp), intent(in), contiguous :: y(:, :)
@@ -123,9 +126,6 @@ contains
     real(wp), intent(out), optional, contiguous :: cell_energy(:), cell_power(:)
     type(fracture_t), intent(inout), optional :: fr
     real(wp), intent(in), optional :: time
-    !> The chunks of cell_nodes (cell_chunks; made here when absent).
-    integer, intent(in), optional, contiguous :: plan(:, :)
-    integer, allocatable :: own_plan(:, :)
     !> Add the forces to f (which holds zeros, or forces to add to) instead of replacing it.
     logical, intent(in), optional :: add
     !> Work space: node rows (kernel_rows(); made here when absent).
@@ -139,7 +139,7 @@ contains
     type(exact_sum_t), intent(inout), optional :: energy_terms
     ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
     ! (w) and, with filtered damping, the velocities (p)
-    integer :: bn(0:chunk), tn(0:chunk)
+    integer :: bn(0:chunk), tn(0:chunk), cq(4, chunk)
     real(wp) :: bw(0:chunk, 2), tw(0:chunk, 2)
     real(wp) :: bp(0:chunk, 2), tp(0:chunk, 2)
     ! the node rows of the last chunks, for the chunk above each to reuse as its bottom row
@@ -162,7 +162,7 @@ contains
     real(wp) :: onset(3), lc1(5)
     integer(i8) :: n_past
 
-    nc = size(cell_nodes, 2)
+    nc = cells%n_cells
     keep_energy = .false.
     keep_power = .false.
     if (present(cell_energy)) keep_energy = size(cell_energy) >= nc
@@ -201,7 +201,6 @@ contains
     end if
     energy = 0.0_wp
     damp_power = 0.0_wp
-    if (.not. present(plan)) own_plan = cell_chunks(cell_nodes)
     if (present(rows)) then
       rp => rows
     else
@@ -254,8 +253,8 @@ contains
         bn(0) = b0
         tn(0) = t0
         do i = 1, m
-          bn(i) = cell_nodes(2, c0 + i - 1)
-          tn(i) = cell_nodes(3, c0 + i - 1)
+          bn(i) = cells%corners(2, cells%chunks(6, ic) + i - 1)
+          tn(i) = cells%corners(3, cells%chunks(6, ic) + i - 1)
         end do
         call gather_rows(y, 1, m, bn, tn, rp(ib)%u, rp(it)%u)
         if (damped) call gather_rows(y, row, m, bn, tn, bw, tw)
@@ -335,8 +334,8 @@ contains
       end if
       end associate
       if (routed(ic)) then
-        call add_routed_forces(m, cell_nodes(:, c0:c0 + m - 1), route(route_at(ic):), fx, fy, f, &
-                               side)
+        call cells%chunk_corners(ic, cq, m)
+        call add_routed_forces(m, cq, route(route_at(ic):), fx, fy, f, side)
       else if (consec) then
         call add_block_forces(m, f(:, b0:b0 + m), f(:, t0:t0 + m), fx, fy)
       else
@@ -374,11 +373,7 @@ contains
 
     !> The number of chunks.
     pure integer function n_chunks()
-      if (present(plan)) then
-        n_chunks = size(plan, 2)
-      else
-        n_chunks = size(own_plan, 2)
-      end if
+      n_chunks = cells%n_chunks()
     end function n_chunks
 
     !> Ask for chunk j's top node row of y and of f (when numbered consecutively).
@@ -405,19 +400,11 @@ contains
       integer, intent(in) :: j
       integer, intent(out) :: first, n, b, t
       logical, intent(out) :: cons
-      if (present(plan)) then
-        first = plan(1, j)
-        n = plan(2, j)
-        cons = plan(3, j) == 1
-        b = plan(4, j)
-        t = plan(5, j)
-      else
-        first = own_plan(1, j)
-        n = own_plan(2, j)
-        cons = own_plan(3, j) == 1
-        b = own_plan(4, j)
-        t = own_plan(5, j)
-      end if
+      first = cells%chunks(1, j)
+      n = cells%chunks(2, j)
+      cons = cells%chunks(3, j) == 1
+      b = cells%chunks(4, j)
+      t = cells%chunks(5, j)
     end subroutine chunk_of
   end subroutine cell_forces
 
@@ -426,45 +413,6 @@ contains
     type(edge_row_t), allocatable :: rows(:)
     allocate(rows(kernel_slots + 2))
   end function kernel_rows
-
-  !> The chunks of a cell list for cell_forces: plan(:, j) = (first cell, number of cells,
-  !> 1 when the chunk's bottom and top node rows are each numbered consecutively, else 0,
-  !> the first cell's bottom-left and top-left nodes).
-  !> A chunk holds up to 64 consecutive cells each sharing its left edge with the right edge
-  !> of the one before (a run of a grid row), so holes and a rank's row ends end chunks.
-  !> With kind (one a cell), a chunk also ends where the kind changes.
-  pure function cell_chunks(cell_nodes, kind) result(plan)
-    integer, intent(in) :: cell_nodes(:, :)
-    logical, intent(in), optional :: kind(:)
-    integer, allocatable :: plan(:, :)
-    integer :: nc, c0, m, n, pass
-    nc = size(cell_nodes, 2)
-    ! first count the chunks, then fill them
-    do pass = 1, 2
-      n = 0
-      c0 = 1
-      do while (c0 <= nc)
-        m = 1
-        do while (m < chunk .and. c0 + m <= nc)
-          if (cell_nodes(1, c0 + m) /= cell_nodes(2, c0 + m - 1) .or. &
-              cell_nodes(4, c0 + m) /= cell_nodes(3, c0 + m - 1)) exit
-          if (present(kind)) then
-            if (kind(c0 + m) .neqv. kind(c0)) exit
-          end if
-          m = m + 1
-        end do
-        n = n + 1
-        if (pass == 2) then
-          plan(:, n) = [c0, m, 0, cell_nodes(1, c0), cell_nodes(4, c0)]
-          ! consecutive node rows: each cell's right corners follow its left ones
-          if (all(cell_nodes(2, c0:c0 + m - 1) - cell_nodes(1, c0:c0 + m - 1) == 1) .and. &
-              all(cell_nodes(3, c0:c0 + m - 1) - cell_nodes(4, c0:c0 + m - 1) == 1)) plan(3, n) = 1
-        end if
-        c0 = c0 + m
-      end do
-      if (pass == 1) allocate(plan(5, n))
-    end do
-  end function cell_chunks
 
   !> Rows r, r+1 of y at the nodes b0..b0+m (bottom) and t0..t0+m (top) into wb, wt(0:m, 2).
   pure subroutine gather_block(y, r, m, b0, t0, wb, wt)

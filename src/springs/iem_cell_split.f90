@@ -9,7 +9,7 @@
 module iem_cell_split
   use iem_kinds, only: wp, i8
   use iem_sort, only: sort_i8
-  use iem_cell_kernel, only: cell_chunks
+  use iem_cell_table, only: cell_table_t, cell_table
   implicit none
   private
   public :: cell_split_t
@@ -19,9 +19,9 @@ module iem_cell_split
   type :: cell_split_t
     !> Whether the rank has halo nodes (else nothing is split and nothing is allocated).
     logical :: active = .false.
-    !> The interior and the boundary chunks (iem_cell_kernel's plans), each in cell order.
-    integer, allocatable :: plan_in(:, :), plan_bd(:, :)
-    !> Per chunk of plan_in and plan_bd: where its routes start in route (0: not routed, its
+    !> The interior and the boundary chunks (iem_cell_table's tables), each in cell order.
+    type(cell_table_t) :: cells_in, cells_bd
+    !> Per chunk of cells_in and cells_bd: where its routes start in route (0: not routed, its
     !> corner forces go to f as usual).
     integer, allocatable :: at_in(:), at_bd(:)
     !> Per corner of a routed chunk's cells: 0 added to f, r > 0 side slot r, < 0 dropped
@@ -39,23 +39,31 @@ module iem_cell_split
 
 contains
 
-  !> Split the cells cell_nodes(4, :) of a rank whose nodes 1..n_owned are owned and
-  !> n_owned+1..n_local halo nodes; inactive (nothing split) without halo nodes.
-  subroutine split_init(this, cell_nodes, n_owned, n_local)
+  !> Split the cells of a rank whose nodes 1..n_owned are owned and n_owned+1..n_local halo
+  !> nodes; inactive (nothing split) without halo nodes.
+  subroutine split_init(this, cells, n_owned, n_local)
     class(cell_split_t), intent(inout) :: this
-    integer, intent(in) :: cell_nodes(:, :), n_owned, n_local
-    logical, allocatable :: bd(:)
-    integer, allocatable :: plan(:, :), cnt(:)
+    type(cell_table_t), intent(in) :: cells
+    integer, intent(in) :: n_owned, n_local
+    logical, allocatable :: bd(:), is_bd(:)
+    integer, allocatable :: plan(:, :), cnt(:), cell_nodes(:, :)
+    type(cell_table_t) :: split
     integer(i8), allocatable :: dl(:)
     integer :: nc, c, q, j, k, n, nd, na, n_in, n_bd, n_route, at, c0, m, d
     logical :: touch
 
     this%active = n_local > n_owned
-    if (allocated(this%plan_in)) deallocate(this%plan_in, this%plan_bd, this%at_in, &
-                                            this%at_bd, this%route, this%d_node, &
-                                            this%d_cells, this%side)
+    if (allocated(this%at_in)) deallocate(this%at_in, this%at_bd, this%route, this%d_node, &
+                                          this%d_cells, this%side)
+    call this%cells_in%free()
+    call this%cells_bd%free()
     if (.not. this%active) return
-    nc = size(cell_nodes, 2)
+    ! every cell's corners, for the making of the split only
+    nc = cells%n_cells
+    allocate(cell_nodes(4, nc))
+    do j = 1, cells%n_chunks()
+      call cells%chunk_corners(j, cell_nodes(:, cells%chunks(1, j):), m)
+    end do
     allocate(bd(nc))
     do c = 1, nc
       bd(c) = any(cell_nodes(:, c) > n_owned)
@@ -86,7 +94,8 @@ contains
     this%d_cells = 0
     this%side = 0.0_wp
     ! the chunks, of one kind each, in cell order; the routed ones touch D
-    plan = cell_chunks(cell_nodes, bd)
+    split = cell_table(cell_nodes, bd)
+    plan = split%chunks
     n_in = 0
     n_bd = 0
     n_route = 0
@@ -100,8 +109,8 @@ contains
       end if
       if (touches(c0, m)) n_route = n_route + 4*m
     end do
-    allocate(this%plan_in(size(plan, 1), n_in), this%plan_bd(size(plan, 1), n_bd), &
-             this%at_in(n_in), this%at_bd(n_bd), this%route(n_route), cnt(nd))
+    allocate(this%at_in(n_in), this%at_bd(n_bd), this%route(n_route), cnt(nd), &
+             is_bd(size(plan, 2)))
     cnt = 0
     n_in = 0
     n_bd = 0
@@ -127,18 +136,19 @@ contains
           end do
         end do
       end if
+      is_bd(j) = bd(c0)
       if (bd(c0)) then
         n_bd = n_bd + 1
-        this%plan_bd(:, n_bd) = plan(:, j)
         this%at_bd(n_bd) = merge(at, 0, touch)
       else
         n_in = n_in + 1
-        this%plan_in(:, n_in) = plan(:, j)
         this%at_in(n_in) = merge(at, 0, touch)
       end if
       if (touch) at = at + 4*m
     end do
     this%d_cells = cnt
+    this%cells_in = split%subset(.not. is_bd)
+    this%cells_bd = split%subset(is_bd)
   contains
 
     !> The position of node l in D's list dl(1:na) (0: not in D).
