@@ -8,6 +8,7 @@ module iem_local_lattice
   use, intrinsic :: iso_fortran_env, only: int8
   use iem_kinds, only: wp, ip, i8
   use iem_cell_table, only: cell_table_t, max_chunk
+  use iem_number_runs, only: number_runs_t
   implicit none
   private
   public :: local_lattice_t
@@ -15,15 +16,11 @@ module iem_local_lattice
   !> Local lattice of one rank.
   type :: local_lattice_t
     integer :: n_owned = 0, n_local = 0, n_cells = 0
-    !> The owned nodes in runs along a grid row: run r holds the nodes run_first(r) ..
-    !> run_first(r + 1) - 1 (run_first(n_runs + 1) = n_owned + 1), the k-th of them (from 0)
-    !> at grid indices (run_i(r) + k, run_j(r)) with global 0-based number run_gid(r) + k;
-    !> runs in ascending order of number. Read them with node_gid, node_ij, local_of.
-    integer :: n_runs = 0
-    integer, allocatable :: run_first(:), run_i(:), run_j(:)
-    !> Runs per owned node and runs per cell (set with the runs: run_holding's first guess).
-    real(wp) :: run_scale = 0.0_wp, cell_run_scale = 0.0_wp
-    integer(i8), allocatable :: run_gid(:)
+    !> The owned nodes' global 0-based numbers in runs (iem_number_runs), each run along a
+    !> grid row: the k-th node (from 0) of run r is at grid indices (run_i(r) + k, run_j(r)).
+    !> Read them with node_gid, node_ij, local_of.
+    type(number_runs_t) :: node_runs
+    integer, allocatable :: run_i(:), run_j(:)
     !> The halo nodes' global numbers and grid indices (node n_owned + k is halo node k).
     integer(i8), allocatable :: halo_gid(:)
     integer, allocatable :: halo_ij(:, :)
@@ -33,12 +30,9 @@ module iem_local_lattice
     !> (counter-clockwise from lower left; iem_cell_table: listed only for the chunks whose
     !> node rows are not numbered consecutively). Read a cell's with cell_nodes or corners.
     type(cell_table_t) :: cells
-    !> The local cells in runs of consecutive global numbers: run r holds the cells
-    !> cell_run_first(r) .. cell_run_first(r + 1) - 1 (cell_run_first(n_cell_runs + 1) =
-    !> n_cells + 1), numbered from cell_run_gid(r) on. Read them with cell_gid, cell_local_of.
-    integer :: n_cell_runs = 0
-    integer, allocatable :: cell_run_first(:)
-    integer(i8), allocatable :: cell_run_gid(:)
+    !> The local cells' global 0-based numbers in runs (at most one a grid row). Read them
+    !> with cell_gid, cell_gids, cell_local_of.
+    type(number_runs_t) :: cell_runs
     !> Each local cell's material (1..; kept only when the lattice is mixed, else every
     !> cell's is 1: read it with mat) and its open edges: bit q-1 set when edge q (bottom,
     !> right, top, left) lies on the boundary of the body.
@@ -59,7 +53,6 @@ module iem_local_lattice
     procedure :: cell_gid => local_lattice_cell_gid
     procedure :: cell_gids => local_lattice_cell_gids
     procedure :: cell_local_of => local_lattice_cell_local_of
-    procedure :: set_scales => local_lattice_set_scales
     procedure :: mat => local_lattice_mat
     procedure :: cell_nodes => local_lattice_cell_nodes
     procedure :: corners => local_lattice_corners
@@ -90,8 +83,8 @@ contains
     if (l > this%n_owned) then
       ij = this%halo_ij(:, l - this%n_owned)
     else
-      r = run_of(this, l)
-      ij = [this%run_i(r) + (l - this%run_first(r)), this%run_j(r)]
+      r = this%node_runs%run_of(l)
+      ij = [this%run_i(r) + (l - this%node_runs%first(r)), this%run_j(r)]
     end if
   end function local_lattice_node_ij
 
@@ -99,12 +92,10 @@ contains
   pure integer(i8) function local_lattice_node_gid(this, l) result(g)
     class(local_lattice_t), intent(in) :: this
     integer, intent(in) :: l
-    integer :: r
     if (l > this%n_owned) then
       g = this%halo_gid(l - this%n_owned)
     else
-      r = run_of(this, l)
-      g = this%run_gid(r) + (l - this%run_first(r))
+      g = this%node_runs%number(l)
     end if
   end function local_lattice_node_gid
 
@@ -112,116 +103,36 @@ contains
   pure function local_lattice_owned_gids(this) result(g)
     class(local_lattice_t), intent(in) :: this
     integer(i8), allocatable :: g(:)
-    integer :: r, l
-    allocate(g(this%n_owned))
-    do r = 1, this%n_runs
-      do l = this%run_first(r), this%run_first(r + 1) - 1
-        g(l) = this%run_gid(r) + (l - this%run_first(r))
-      end do
-    end do
+    g = this%node_runs%numbers()
   end function local_lattice_owned_gids
 
   !> Local index of the owned node with global number g (0 when this rank does not own it).
   pure integer function local_lattice_local_of(this, g) result(l)
     class(local_lattice_t), intent(in) :: this
     integer(i8), intent(in) :: g
-    integer :: r
-    l = 0
-    if (this%n_runs == 0) return
-    if (g < this%run_gid(1)) return
-    r = last_at_or_below_i8(this%run_gid(1:this%n_runs), g)
-    if (g - this%run_gid(r) < this%run_first(r + 1) - this%run_first(r)) &
-      l = this%run_first(r) + int(g - this%run_gid(r))
+    l = this%node_runs%item_of(g)
   end function local_lattice_local_of
 
   !> Global 0-based number of local cell c.
   pure integer(i8) function local_lattice_cell_gid(this, c) result(g)
     class(local_lattice_t), intent(in) :: this
     integer, intent(in) :: c
-    integer :: r
-    r = run_holding(this%cell_run_first, this%n_cell_runs, this%cell_run_scale, c)
-    g = this%cell_run_gid(r) + (c - this%cell_run_first(r))
+    g = this%cell_runs%number(c)
   end function local_lattice_cell_gid
 
   !> Global numbers of the local cells 1..n_cells (ascending).
   pure function local_lattice_cell_gids(this) result(g)
     class(local_lattice_t), intent(in) :: this
     integer(i8), allocatable :: g(:)
-    integer :: r, c
-    allocate(g(this%n_cells))
-    do r = 1, this%n_cell_runs
-      do c = this%cell_run_first(r), this%cell_run_first(r + 1) - 1
-        g(c) = this%cell_run_gid(r) + (c - this%cell_run_first(r))
-      end do
-    end do
+    g = this%cell_runs%numbers()
   end function local_lattice_cell_gids
 
   !> Local index of the local cell with global number g (0 when it is not a local cell).
   pure integer function local_lattice_cell_local_of(this, g) result(c)
     class(local_lattice_t), intent(in) :: this
     integer(i8), intent(in) :: g
-    integer :: r
-    c = 0
-    if (this%n_cell_runs == 0) return
-    if (g < this%cell_run_gid(1)) return
-    r = last_at_or_below_i8(this%cell_run_gid(1:this%n_cell_runs), g)
-    if (g - this%cell_run_gid(r) < this%cell_run_first(r + 1) - this%cell_run_first(r)) &
-      c = this%cell_run_first(r) + int(g - this%cell_run_gid(r))
+    c = this%cell_runs%item_of(g)
   end function local_lattice_cell_local_of
-
-  !> The run r (1..n) that holds item k of runs that start at first(r) (first(1) = 1, first(n + 1)
-  !> past the last item), scale being n over the number of items: runs of equal length (a
-  !> rectangle's rows) are found at the first guess, others by bisection on its side.
-  pure integer function run_holding(first, n, scale, k) result(r)
-    integer, intent(in) :: first(:), n, k
-    real(wp), intent(in) :: scale
-    r = 1 + int(real(k - 1, wp)*scale)
-    r = min(max(r, 1), n)
-    if (first(r) > k) then
-      r = last_at_or_below(first(1:r - 1), k)
-    else if (first(r + 1) <= k) then
-      r = r + last_at_or_below(first(r + 1:n), k)
-    end if
-  end function run_holding
-
-  !> The position of the last element of the ascending list a that is at most x (a(1) <= x).
-  pure integer function last_at_or_below(a, x) result(lo)
-    integer, intent(in) :: a(:), x
-    integer :: hi, mid
-    lo = 1
-    hi = size(a)
-    do while (lo < hi)
-      mid = (lo + hi + 1)/2
-      if (a(mid) <= x) then
-        lo = mid
-      else
-        hi = mid - 1
-      end if
-    end do
-  end function last_at_or_below
-
-  !> last_at_or_below for 64-bit integers.
-  pure integer function last_at_or_below_i8(a, x) result(lo)
-    integer(i8), intent(in) :: a(:), x
-    integer :: hi, mid
-    lo = 1
-    hi = size(a)
-    do while (lo < hi)
-      mid = (lo + hi + 1)/2
-      if (a(mid) <= x) then
-        lo = mid
-      else
-        hi = mid - 1
-      end if
-    end do
-  end function last_at_or_below_i8
-
-  !> The run that holds owned node l (1 <= l <= n_owned).
-  pure integer function run_of(this, l) result(r)
-    class(local_lattice_t), intent(in) :: this
-    integer, intent(in) :: l
-    r = run_holding(this%run_first, this%n_runs, this%run_scale, l)
-  end function run_of
 
   !> Material (1..) of local cell c.
   pure integer function local_lattice_mat(this, c) result(m)
@@ -289,23 +200,15 @@ contains
     open = btest(this%cell_open(c), q - 1)
   end function local_lattice_edge_open
 
-  !> Set the runs' scales (run_holding) once the runs are made.
-  pure subroutine local_lattice_set_scales(this)
-    class(local_lattice_t), intent(inout) :: this
-    this%run_scale = real(this%n_runs, wp)/max(this%n_owned, 1)
-    this%cell_run_scale = real(this%n_cell_runs, wp)/max(this%n_cells, 1)
-  end subroutine local_lattice_set_scales
-
   !> Release all arrays.
   subroutine local_lattice_free(this)
     class(local_lattice_t), intent(inout) :: this
-    if (allocated(this%run_first)) deallocate(this%run_first, this%run_i, this%run_j, this%run_gid)
+    call this%node_runs%free()
+    if (allocated(this%run_i)) deallocate(this%run_i, this%run_j)
     if (allocated(this%halo_gid)) deallocate(this%halo_gid)
     if (allocated(this%halo_ij)) deallocate(this%halo_ij)
-    this%n_runs = 0
     call this%cells%free()
-    if (allocated(this%cell_run_first)) deallocate(this%cell_run_first, this%cell_run_gid)
-    this%n_cell_runs = 0
+    call this%cell_runs%free()
     if (allocated(this%cell_mat)) deallocate(this%cell_mat)
     if (allocated(this%cell_open)) deallocate(this%cell_open)
     if (allocated(this%cell_src)) deallocate(this%cell_src)

@@ -214,41 +214,32 @@ contains
         pg = nid(i, j)
       end do
     end do
-    allocate(keys(n_halo), lat%run_first(n_runs + 1), lat%run_i(n_runs), lat%run_j(n_runs), &
-             lat%run_gid(n_runs), lat%halo_gid(n_halo), lat%halo_ij(2, n_halo), &
-             own(n_owned + n_halo), cn(4, n_cells), &
-             lat%cell_run_first(max(0, min(j1, ny - 1) - b0 + 1) + 1), &
-             lat%cell_run_gid(max(0, min(j1, ny - 1) - b0 + 1)), &
+    allocate(keys(n_halo), lat%run_i(n_runs), lat%run_j(n_runs), lat%halo_gid(n_halo), &
+             lat%halo_ij(2, n_halo), own(n_owned + n_halo), cn(4, n_cells), &
              lat%cell_mat(merge(n_cells, 0, lat%mixed)), lat%cell_open(n_cells), stat=ierr)
     if (ierr == 0 .and. shapes) allocate(lat%cell_src(n_cells), lat%side_src(4, n_cells), &
                                          stat=ierr)
     call guard%note(ierr, 'the lattice of the rank', 4.0_wp*(n_owned + n_halo) + &
-                    24.0_wp*n_halo + 20.0_wp*n_runs + merge(26.0_wp, 22.0_wp, lat%mixed)*n_cells)
+                    24.0_wp*n_halo + 20.0_wp*n_runs + merge(21.0_wp, 17.0_wp, lat%mixed)*n_cells)
     if (guard%failed) return
+    call lat%node_runs%init(n_runs)
+    call lat%cell_runs%init(max(0, min(j1, ny - 1) - b0 + 1))
     l = 0
-    r = 0
     pi = -2
     pj = -1
-    pg = -2
     do j = j0, j1
       do i = i0, i1
         if (nid(i, j) < 0) cycle
         l = l + 1
-        if (j /= pj .or. i /= pi + 1 .or. nid(i, j) /= pg + 1) then
-          r = r + 1
-          lat%run_first(r) = l
-          lat%run_i(r) = i
-          lat%run_j(r) = j
-          lat%run_gid(r) = nid(i, j)
-        end if
+        ! a run stays in its grid row
+        call lat%node_runs%add(nid(i, j), j /= pj .or. i /= pi + 1, r)
+        lat%run_i(r) = i - (l - lat%node_runs%first(r))
+        lat%run_j(r) = j
         pi = i
         pj = j
-        pg = nid(i, j)
         own(l) = int(me, ip)
       end do
     end do
-    lat%run_first(n_runs + 1) = n_owned + 1
-    lat%n_runs = n_runs
     k = 0
     do j = b0, b1
       do i = a0, a1
@@ -279,19 +270,12 @@ contains
     lat%n_cells = n_cells
     ! the cells' numbers: runs of consecutive numbers (at most one a row of the window)
     k = 0
-    r = 0
-    pg = -2
     do j = b0, min(j1, ny - 1)
       c = body%cell_first(j) + lc(j - r0)
       do i = a0, min(i1, nx - 1)
         if (mat(i, j) <= 0) cycle
         k = k + 1
-        if (c /= pg + 1) then
-          r = r + 1
-          lat%cell_run_first(r) = k
-          lat%cell_run_gid(r) = c
-        end if
-        pg = c
+        call lat%cell_runs%add(c, .false., r)
         c = c + 1
         cn(:, k) = [(lmap(i + ci(q), j + cj(q)), q = 1, 4)]
         if (lat%mixed) lat%cell_mat(k) = mat(i, j)
@@ -305,9 +289,6 @@ contains
         end if
       end do
     end do
-    lat%n_cell_runs = r
-    lat%cell_run_first(r + 1) = n_cells + 1
-    call lat%set_scales()
     ! the cells' corners as the force kernel's chunks (listed only where not consecutive)
     lat%cells = cell_table(cn)
   end subroutine build_local_window
