@@ -4,12 +4,72 @@
 !> pass, so that no stage reads or writes the rates as a separate array (docs/numerics.md,
 !> "RK4's passes"). The classical scheme: k_s = (v_s, a_s), y_new = y + dt sum w_s k_s, stage
 !> states y + h_s k_s, each value with the same arithmetic as separate passes would do.
+!> Where iem_node_pass_simd.c is built with AVX2 and FMA, the RK4 passes and Verlet's fused
+!> kicks run there, a node a vector, bit for bit as the loops here (which run otherwise).
 module iem_node_pass
+  use, intrinsic :: iso_c_binding, only: c_int, c_double
   use iem_kinds, only: wp
   implicit none
   private
   public :: rk4_stage_t, accelerations, guarded_kick, rk4_first_pass, rk4_mid_pass, rk4_last_pass
-  public :: kick_drift, accelerations_in_place
+  public :: kick_drift, accelerations_in_place, node_pass_simd, use_simd
+
+  !> Whether the passes built in iem_node_pass_simd.c are used when built (tests clear it to
+  !> compare them with the loops here).
+  logical :: use_simd = .true.
+
+  interface
+    !> 1 when iem_node_pass_simd.c's passes are built (AVX2 and FMA), else 0.
+    pure integer(c_int) function c_simd() bind(c, name='iem_node_pass_simd')
+      import :: c_int
+    end function c_simd
+    !> rk4_first_pass, where built.
+    pure subroutine c_first(n, alpha, mass, wdt, h, y, f, ynew, ys) &
+        bind(c, name='iem_rk4_first_pass')
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), value :: alpha, wdt, h
+      real(c_double), intent(in) :: mass(*), y(*)
+      real(c_double), intent(inout) :: f(*), ynew(*), ys(*)
+    end subroutine c_first
+    !> rk4_mid_pass, where built.
+    pure subroutine c_mid(n, alpha, mass, wdt, h, y0, f, ynew, ys) &
+        bind(c, name='iem_rk4_mid_pass')
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), value :: alpha, wdt, h
+      real(c_double), intent(in) :: mass(*), y0(*)
+      real(c_double), intent(inout) :: f(*), ynew(*), ys(*)
+    end subroutine c_mid
+    !> rk4_last_pass, where built.
+    pure subroutine c_last(n, alpha, mass, wdt, ys, f, ynew, total) &
+        bind(c, name='iem_rk4_last_pass')
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), value :: alpha, wdt
+      real(c_double), intent(in) :: mass(*), ys(*)
+      real(c_double), intent(inout) :: f(*), ynew(*)
+      real(c_double), intent(out) :: total
+    end subroutine c_last
+    !> accelerations_in_place with kick, where built.
+    pure subroutine c_kick(n, alpha, mass, h, y, fa, first_bad) &
+        bind(c, name='iem_kick_in_place')
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), value :: alpha, h
+      real(c_double), intent(in) :: mass(*)
+      real(c_double), intent(inout) :: y(*), fa(*)
+      integer(c_int), intent(out) :: first_bad
+    end subroutine c_kick
+    !> kick_drift, where built.
+    pure subroutine c_kick_drift(n, h, dt, acc, y, clear) &
+        bind(c, name='iem_kick_drift')
+      import :: c_int, c_double
+      integer(c_int), value :: n, clear
+      real(c_double), value :: h, dt
+      real(c_double), intent(inout) :: acc(*), y(*)
+    end subroutine c_kick_drift
+  end interface
 
   !> An RK4 stage for the node pass: its number (1..4), w_s dt, the offset h of the next
   !> stage state, and after the last stage the sum of the new state's owned values (not
@@ -20,6 +80,11 @@ module iem_node_pass
   end type rk4_stage_t
 
 contains
+
+  !> Whether the passes of iem_node_pass_simd.c run (built with AVX2 and FMA, and use_simd).
+  pure logical function node_pass_simd()
+    node_pass_simd = use_simd .and. c_simd() == 1
+  end function node_pass_simd
 
   !> Accelerations acc(1:2, l) = -(f + alpha m v)/m of the owned nodes 1..n (velocities in
   !> y(3:4, :)), clearing f(:, 1:n); with kick, then the velocities' half kick v += kick a
@@ -66,13 +131,20 @@ contains
   !> (fa keeps the velocities before the kick where the new ones are not both finite).
   pure subroutine accelerations_in_place(n, alpha, mass, y, fa, kick, first_bad)
     integer, intent(in) :: n
-    real(wp), intent(in) :: alpha, mass(:)
+    real(wp), intent(in), contiguous :: mass(:)
+    real(wp), intent(in) :: alpha
     real(wp), intent(inout), contiguous :: y(:, :), fa(:, :)
     real(wp), intent(in), optional :: kick
     integer, intent(out), optional :: first_bad
     real(wp) :: a1, a2
     integer :: l, first
+    integer(c_int) :: bad
     logical :: ok
+    if (present(kick) .and. node_pass_simd()) then
+      call c_kick(n, alpha, mass, kick, y, fa, bad)
+      if (present(first_bad)) first_bad = bad
+      return
+    end if
     if (.not. present(kick)) then
       do l = 1, n
         fa(1, l) = -(fa(1, l) + alpha*mass(l)*y(3, l))/mass(l)
@@ -145,6 +217,10 @@ contains
     logical :: zero
     zero = .false.
     if (present(clear)) zero = clear
+    if (node_pass_simd()) then
+      call c_kick_drift(n, h, dt, acc, y, merge(1_c_int, 0_c_int, zero))
+      return
+    end if
     if (zero) then
       do l = 1, n
         y(3, l) = y(3, l) + h*acc(1, l)
@@ -168,11 +244,15 @@ contains
   !> ys = y + h k1, clearing f; (u, v) only (4 values a node).
   pure subroutine rk4_first_pass(n, alpha, mass, wdt, h, y, f, ynew, ys)
     integer, intent(in) :: n
-    real(wp), intent(in) :: alpha, mass(:), wdt, h
-    real(wp), intent(in), contiguous :: y(:, :)
+    real(wp), intent(in) :: alpha, wdt, h
+    real(wp), intent(in), contiguous :: mass(:), y(:, :)
     real(wp), intent(inout), contiguous :: f(:, :), ynew(:, :), ys(:, :)
     real(wp) :: a1, a2, v1, v2
     integer :: l
+    if (node_pass_simd()) then
+      call c_first(n, alpha, mass, wdt, h, y, f, ynew, ys)
+      return
+    end if
     do l = 1, n
       v1 = y(3, l)
       v2 = y(4, l)
@@ -195,11 +275,15 @@ contains
   !> stage state y0 + h k_s (y0: the state at the start of the step), clearing f.
   pure subroutine rk4_mid_pass(n, alpha, mass, wdt, h, y0, f, ynew, ys)
     integer, intent(in) :: n
-    real(wp), intent(in) :: alpha, mass(:), wdt, h
-    real(wp), intent(in), contiguous :: y0(:, :)
+    real(wp), intent(in) :: alpha, wdt, h
+    real(wp), intent(in), contiguous :: mass(:), y0(:, :)
     real(wp), intent(inout), contiguous :: f(:, :), ynew(:, :), ys(:, :)
     real(wp) :: a1, a2, v1, v2
     integer :: l
+    if (node_pass_simd()) then
+      call c_mid(n, alpha, mass, wdt, h, y0, f, ynew, ys)
+      return
+    end if
     do l = 1, n
       v1 = ys(3, l)
       v2 = ys(4, l)
@@ -222,12 +306,16 @@ contains
   !> new values in total (eight partial sums, so that the loop vectorises).
   pure subroutine rk4_last_pass(n, alpha, mass, wdt, ys, f, ynew, total)
     integer, intent(in) :: n
-    real(wp), intent(in) :: alpha, mass(:), wdt
-    real(wp), intent(in), contiguous :: ys(:, :)
+    real(wp), intent(in) :: alpha, wdt
+    real(wp), intent(in), contiguous :: mass(:), ys(:, :)
     real(wp), intent(inout), contiguous :: f(:, :), ynew(:, :)
     real(wp), intent(out) :: total
     real(wp) :: a1, a2, v1, v2, part(8)
     integer :: l, l0, j
+    if (node_pass_simd()) then
+      call c_last(n, alpha, mass, wdt, ys, f, ynew, total)
+      return
+    end if
     part = 0.0_wp
     do l0 = 0, n - 1, 8
       do j = 1, min(8, n - l0)
