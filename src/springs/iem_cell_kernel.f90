@@ -22,6 +22,7 @@ module iem_cell_kernel
   use iem_prefetch, only: prefetch
   use iem_exact_sum, only: exact_sum_t
   use iem_cell_table, only: cell_table_t, cell_table
+  use iem_kernel_simd, only: kernel_simd, c_gather_row4, c_scatter_rows
   implicit none
   private
   public :: cell_energy, cell_force, cell_forces, cell_strain_measures
@@ -428,7 +429,9 @@ contains
     real(wp), intent(in), contiguous :: y(:, :)
     integer, intent(in) :: r, m, n0
     real(wp), intent(inout) :: w(0:chunk, 2)
-    if (size(y, 1) == 4) then
+    if (size(y, 1) == 4 .and. kernel_simd()) then
+      call c_gather_row4(m, y(:, n0:n0 + m), r - 1, chunk + 1, w)
+    else if (size(y, 1) == 4) then
       call block_row(4, y(:, n0:n0 + m), w)
     else
       call block_row(size(y, 1), y(:, n0:n0 + m), w)
@@ -516,6 +519,10 @@ contains
     real(wp), intent(inout) :: fb(2, 0:m), ft(2, 0:m)
     real(wp), intent(in) :: fx(chunk, 4), fy(chunk, 4)
     integer :: j
+    if (kernel_simd()) then
+      call c_scatter_rows(m, fb, ft, fx, fy, chunk)
+      return
+    end if
     fb(1, 0) = fb(1, 0) + fx(1, 1)
     fb(2, 0) = fb(2, 0) + fy(1, 1)
     ft(1, 0) = ft(1, 0) + fx(1, 4)
