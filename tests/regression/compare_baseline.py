@@ -21,6 +21,8 @@ Usage (from the repository root; benchmarks/baseline.sh builds and prints the ba
 --tolerance PATTERN=RTOL (repeatable; none by default) compares the datasets whose path
 matches the shell pattern to a tolerance instead of bitwise: max |new - old| over the
 dataset's largest magnitude <= RTOL (for a planned change of the order of global sums).
+--integrator verlet (or rk4) runs the dynamic scenes with that integrator instead of the one
+they name (the shipped ones use RK4; static scenes are left out).
 --perturb-new 'OLD=>NEW' changes the current code's input only (a text substitution),
 to show that a different input is caught; --self-test checks on copies of an output file
 with one bit changed, a NaN, or a dataset removed, that each is caught.
@@ -36,6 +38,7 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -148,9 +151,26 @@ def compare_files(old: Path, new: Path, groups: list[str],
     return out
 
 
-def scene_input(case: Path, dst: Path, subs: list[str]) -> None:
-    """Write the scene with its output file renamed to out.h5 and the substitutions made."""
+def is_static(case: Path) -> bool:
+    """Whether the scene is a static analysis."""
+    return re.search(r"^\s*analysis\s*=\s*'static'", case.read_text(), re.M) is not None
+
+
+def with_integrator(text: str, integrator: str) -> str:
+    """The scene's text with its &run group naming the integrator (replaced or added)."""
+    if re.search(r"\bintegrator\s*=", text):
+        return re.sub(r"\bintegrator\s*=\s*'[^']*'", f"integrator = '{integrator}'", text,
+                      count=1)
+    return re.sub(r"^(\s*&run[^\n]*\n)", rf"\1  integrator = '{integrator}'\n", text, count=1,
+                  flags=re.M)
+
+
+def scene_input(case: Path, dst: Path, subs: list[str], integrator: str | None = None) -> None:
+    """Write the scene with its output file renamed to out.h5, the substitutions made and,
+    given, the integrator set."""
     text = case.read_text()
+    if integrator:
+        text = with_integrator(text, integrator)
     for sub in subs:
         old, new = sub.split("=>", 1)
         if text.count(old) != 1:
@@ -268,6 +288,8 @@ def main() -> int:
     ap.add_argument("--tolerance", action="append", default=[], metavar="PATTERN=RTOL")
     ap.add_argument("--groups", nargs="+", default=["history", "frames", "mesh"])
     ap.add_argument("--full", action="store_true", help="run the scenes as shipped")
+    ap.add_argument("--integrator", choices=["rk4", "verlet"],
+                    help="run the dynamic scenes with this integrator (static ones left out)")
     ap.add_argument("--perturb-new", action="append", default=[], metavar="OLD=>NEW",
                     help="substitution in the current code's input only (to test the test)")
     ap.add_argument("--files", nargs=2, metavar=("OLD_H5", "NEW_H5"),
@@ -302,6 +324,11 @@ def main() -> int:
     for c in cases:
         if not c.is_file():
             ap.error(f"no scene {c}")
+    if args.integrator:
+        left = [c.stem for c in cases if is_static(c)]
+        if left:
+            print(f"static scenes left out (--integrator): {' '.join(left)}", flush=True)
+        cases = [c for c in cases if not is_static(c)]
 
     work = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="iem_compare_"))
     print(f"baseline {exes['old']}\ncurrent  {exes['new']}\nranks {args.ranks}; tolerances "
@@ -321,7 +348,8 @@ def main() -> int:
                     shutil.rmtree(folder, ignore_errors=True)
                     folder.mkdir(parents=True)
                     scene_input(case, folder / "case.nml",
-                                subs + (args.perturb_new if which == "new" else []))
+                                subs + (args.perturb_new if which == "new" else []),
+                                args.integrator)
                     rc, times[which], tail = run(args, exe, n, folder)
                     if rc != 0:
                         print(f"{label}: the {which} run failed (exit status {rc}):\n{tail}",
