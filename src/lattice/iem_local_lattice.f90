@@ -48,6 +48,7 @@ module iem_local_lattice
     procedure :: node_xy => local_lattice_node_xy
     procedure :: node_ij => local_lattice_node_ij
     procedure :: node_gid => local_lattice_node_gid
+    procedure :: owned_run => local_lattice_owned_run
     procedure :: owned_gids => local_lattice_owned_gids
     procedure :: local_of => local_lattice_local_of
     procedure :: cell_gid => local_lattice_cell_gid
@@ -87,6 +88,21 @@ contains
       ij = [this%run_i(r) + (l - this%node_runs%first(r)), this%run_j(r)]
     end if
   end function local_lattice_node_ij
+
+  !> The owned nodes' run r (1..node_runs%n): its nodes l0..l1, the first one's grid indices
+  !> (i0, j) and global number g0 (node l0 + k is at (i0 + k, j), numbered g0 + k), for loops
+  !> over every owned node that need no lookup a node.
+  pure subroutine local_lattice_owned_run(this, r, l0, l1, i0, j, g0)
+    class(local_lattice_t), intent(in) :: this
+    integer, intent(in) :: r
+    integer, intent(out) :: l0, l1, i0, j
+    integer(i8), intent(out) :: g0
+    l0 = this%node_runs%first(r)
+    l1 = this%node_runs%first(r + 1) - 1
+    i0 = this%run_i(r)
+    j = this%run_j(r)
+    g0 = this%node_runs%gid(r)
+  end subroutine local_lattice_owned_run
 
   !> Global 0-based number of local node l.
   pure integer(i8) function local_lattice_node_gid(this, l) result(g)

@@ -28,8 +28,8 @@ contains
     logical, intent(out) :: mask(:)
     real(wp), intent(out), optional :: weight(:)
     logical, allocatable :: in_set(:)
-    integer(i8) :: target
-    integer :: l, c, q, a, b
+    integer(i8) :: target, g0
+    integer :: l, c, q, a, b, r, l0, l1, i0, j
     real(wp) :: len
     logical :: edge_set, take
 
@@ -38,7 +38,15 @@ contains
     in_set = .false.
     if (.not. edge_set) then
       target = spec%node
-      do l = 1, lat%n_local
+      ! the owned nodes run by run, the halo nodes one by one
+      do r = 1, lat%node_runs%n
+        call lat%owned_run(r, l0, l1, i0, j, g0)
+        do l = l0, l1
+          in_set(l) = node_in(spec, body, [(i0 + l - l0)*lat%lx, j*lat%ly], g0 + (l - l0), &
+                              target)
+        end do
+      end do
+      do l = lat%n_owned + 1, lat%n_local
         in_set(l) = node_in(spec, body, lat%node_xy(l), lat%node_gid(l), target)
       end do
     end if

@@ -11,6 +11,7 @@ submodule (iem_simulation) iem_simulation_output
   use iem_build_info, only: iem_version
   use iem_exact_sum, only: exact_sum_allreduce
   use iem_lattice_queries, only: node_place
+  use iem_cell_table, only: max_chunk
   use iem_fracture, only: edge_factor, shear_factor, failure_kind, intact_time
   implicit none
 
@@ -49,8 +50,8 @@ contains
     integer(i8), allocatable :: cells(:, :), cell_gids(:), material(:)
     real(wp), allocatable :: coords(:, :)
     character(len=:), allocatable :: material_names
-    integer :: k, l, nc, ierr, q
-    integer(i8) :: nodes(4)
+    integer :: k, l, nc, ierr, q, r, l0, l1, i0, j, i, m, cq(4, max_chunk)
+    integer(i8) :: nodes(4), g0
     type(alloc_guard_t) :: guard
 
     associate(p => this%cfg%probes)
@@ -72,8 +73,11 @@ contains
     call guard%note(ierr, 'the mesh output buffers', 16.0_wp*this%lat%n_owned)
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
-    do l = 1, this%lat%n_owned
-      coords(:, l) = this%lat%node_xy(l)
+    do r = 1, this%lat%node_runs%n
+      call this%lat%owned_run(r, l0, l1, i0, j, g0)
+      do l = l0, l1
+        coords(:, l) = [(i0 + l - l0)*this%lat%lx, j*this%lat%ly]
+      end do
     end do
     call this%out%write_mesh_coordinates(coords, stat, msg)
     if (stat /= 0) return
@@ -83,14 +87,19 @@ contains
     call guard%note(ierr, 'the mesh output buffers', 48.0_wp*nc)
     call guard%agree(this%comm, this%grid%label(), stat, msg)
     if (stat /= 0) return
+    ! the counted cells chunk by chunk (their corners without a lookup a cell)
     k = 0
-    do l = 1, this%lat%n_cells
-      if (.not. this%lat%cell_counted(l)) cycle
-      k = k + 1
-      nodes = [(this%lat%node_gid(this%lat%cell_nodes(q, l)), q = 1, 4)]
-      cells(:, k) = nodes
-      cell_gids(k) = this%lat%cell_gid(l)
-      material(k) = this%lat%mat(l)
+    do j = 1, this%lat%cells%n_chunks()
+      call this%lat%cells%chunk_corners(j, cq, m)
+      do i = 1, m
+        if (cq(1, i) > this%lat%n_owned) cycle
+        l = this%lat%cells%chunks(1, j) + i - 1
+        k = k + 1
+        nodes = [(this%lat%node_gid(cq(q, i)), q = 1, 4)]
+        cells(:, k) = nodes
+        cell_gids(k) = this%lat%cell_gid(l)
+        material(k) = this%lat%mat(l)
+      end do
     end do
     material_names = ''
     do k = 1, size(this%cfg%materials)
