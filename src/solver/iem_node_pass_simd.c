@@ -201,7 +201,8 @@ void iem_kick_drift(int n, double h, double dt, double *acc, double *y, int clea
     _mm256_storeu_pd(y + 4 * l + 4, _mm256_permute2f128_pd(u, v, 0x31));
   }
   for (; l < n; l++) {
-    __m128d v = _mm_fmadd_pd(_mm_set1_pd(h), _mm_loadu_pd(acc + 2 * l), _mm_loadu_pd(y + 4 * l + 2));
+    __m128d v = _mm_fmadd_pd(_mm_set1_pd(h), _mm_loadu_pd(acc + 2 * l),
+                             _mm_loadu_pd(y + 4 * l + 2));
     __m128d u = _mm_fmadd_pd(_mm_set1_pd(dt), v, _mm_loadu_pd(y + 4 * l));
     if (clear) _mm_storeu_pd(acc + 2 * l, _mm_setzero_pd());
     _mm_storeu_pd(y + 4 * l, u);
