@@ -5,7 +5,8 @@
 !> "RK4's passes"). The classical scheme: k_s = (v_s, a_s), y_new = y + dt sum w_s k_s, stage
 !> states y + h_s k_s, each value with the same arithmetic as separate passes would do.
 !> Where iem_node_pass_simd.c is built with AVX2 and FMA, the RK4 passes and Verlet's fused
-!> kicks run there, a node a vector, bit for bit as the loops here (which run otherwise).
+!> kicks on states of 4 values a node run there, a node a vector, bit for bit as the loops
+!> here (which run otherwise).
 module iem_node_pass
   use, intrinsic :: iso_c_binding, only: c_int, c_double
   use iem_kinds, only: wp
@@ -140,7 +141,7 @@ contains
     integer :: l, first
     integer(c_int) :: bad
     logical :: ok
-    if (present(kick) .and. node_pass_simd()) then
+    if (present(kick) .and. node_pass_simd() .and. size(y, 1) == 4 .and. size(fa, 1) == 2) then
       call c_kick(n, alpha, mass, kick, y, fa, bad)
       if (present(first_bad)) first_bad = bad
       return
@@ -217,7 +218,7 @@ contains
     logical :: zero
     zero = .false.
     if (present(clear)) zero = clear
-    if (node_pass_simd()) then
+    if (node_pass_simd() .and. size(y, 1) == 4 .and. size(acc, 1) == 2) then
       call c_kick_drift(n, h, dt, acc, y, merge(1_c_int, 0_c_int, zero))
       return
     end if
@@ -249,7 +250,7 @@ contains
     real(wp), intent(inout), contiguous :: f(:, :), ynew(:, :), ys(:, :)
     real(wp) :: a1, a2, v1, v2
     integer :: l
-    if (node_pass_simd()) then
+    if (node_pass_simd() .and. size(y, 1) == 4 .and. size(f, 1) == 2) then
       call c_first(n, alpha, mass, wdt, h, y, f, ynew, ys)
       return
     end if
@@ -280,7 +281,7 @@ contains
     real(wp), intent(inout), contiguous :: f(:, :), ynew(:, :), ys(:, :)
     real(wp) :: a1, a2, v1, v2
     integer :: l
-    if (node_pass_simd()) then
+    if (node_pass_simd() .and. size(ys, 1) == 4 .and. size(f, 1) == 2) then
       call c_mid(n, alpha, mass, wdt, h, y0, f, ynew, ys)
       return
     end if
@@ -312,7 +313,7 @@ contains
     real(wp), intent(out) :: total
     real(wp) :: a1, a2, v1, v2, part(8)
     integer :: l, l0, j
-    if (node_pass_simd()) then
+    if (node_pass_simd() .and. size(ys, 1) == 4 .and. size(f, 1) == 2) then
       call c_last(n, alpha, mass, wdt, ys, f, ynew, total)
       return
     end if
