@@ -89,6 +89,8 @@ contains
     do s = 1, n_samples
       w = omega_max*real(s, wp)/n_samples
       ! first unstable step on a scan below this mode's undamped limit, then bisection
+      ! (lo only grows: once it reaches dt this mode cannot lower dt, and the rest of its scan
+      ! or bisection is skipped, which leaves dt exactly as the whole search would)
       lo = 0.0_wp
       hi = -1.0_wp
       do j = 1, n_scan
@@ -98,9 +100,11 @@ contains
           exit
         end if
         lo = h
+        if (lo >= dt) exit
       end do
       if (hi < 0.0_wp) cycle
       do it = 1, 50
+        if (lo >= dt) exit
         h = 0.5_wp*(lo + hi)
         if (verlet_mode_radius(w, alpha, beta, wc, h) > 1.0_wp + tol) then
           hi = h
