@@ -47,28 +47,39 @@ static inline __m256d rates1(__m256d s, const double *fp, double m, double alpha
 }
 #endif
 
-/* RK4 stage 1 (iem_node_pass's rk4_first_pass): ynew = y + wdt k, ys = y + h k, f cleared. */
-void iem_rk4_first_pass(int n, double alpha, const double *mass, double wdt, double h,
-                       const double *y, double *f, double *ynew, double *ys) {
 #if IEM_SIMD
+/* One RK4 stage's pass over n nodes: the rates k at the states in state (and the forces f,
+ * cleared), ynew = sum + wdt k, ys = base + h k (ys may be state: each node's values are read
+ * before they are written). */
+static void stage_pass(int n, double alpha, const double *mass, double wdt, double h,
+                       const double *state, const double *sum, const double *base, double *f,
+                       double *ynew, double *ys) {
   const __m256d w4 = _mm256_set1_pd(wdt), h4 = _mm256_set1_pd(h), al = _mm256_set1_pd(alpha);
   int l = 0;
   for (; l + 1 < n; l += 2) {
-    __m256d y0 = _mm256_loadu_pd(y + 4 * l), y1 = _mm256_loadu_pd(y + 4 * l + 4), k0, k1;
-    rates2(y0, y1, f + 2 * l, mass + l, al, &k0, &k1);
+    __m256d k0, k1;
+    rates2(_mm256_loadu_pd(state + 4 * l), _mm256_loadu_pd(state + 4 * l + 4), f + 2 * l,
+           mass + l, al, &k0, &k1);
     _mm256_storeu_pd(f + 2 * l, _mm256_setzero_pd());
-    _mm256_storeu_pd(ynew + 4 * l, _mm256_fmadd_pd(w4, k0, y0));
-    _mm256_storeu_pd(ynew + 4 * l + 4, _mm256_fmadd_pd(w4, k1, y1));
-    _mm256_storeu_pd(ys + 4 * l, _mm256_fmadd_pd(h4, k0, y0));
-    _mm256_storeu_pd(ys + 4 * l + 4, _mm256_fmadd_pd(h4, k1, y1));
+    _mm256_storeu_pd(ynew + 4 * l, _mm256_fmadd_pd(w4, k0, _mm256_loadu_pd(sum + 4 * l)));
+    _mm256_storeu_pd(ynew + 4 * l + 4, _mm256_fmadd_pd(w4, k1, _mm256_loadu_pd(sum + 4 * l + 4)));
+    _mm256_storeu_pd(ys + 4 * l, _mm256_fmadd_pd(h4, k0, _mm256_loadu_pd(base + 4 * l)));
+    _mm256_storeu_pd(ys + 4 * l + 4, _mm256_fmadd_pd(h4, k1, _mm256_loadu_pd(base + 4 * l + 4)));
   }
   for (; l < n; l++) {
-    __m256d y0 = _mm256_loadu_pd(y + 4 * l);
-    __m256d k = rates1(y0, f + 2 * l, mass[l], alpha);
+    __m256d k = rates1(_mm256_loadu_pd(state + 4 * l), f + 2 * l, mass[l], alpha);
     _mm_storeu_pd(f + 2 * l, _mm_setzero_pd());
-    _mm256_storeu_pd(ynew + 4 * l, _mm256_fmadd_pd(w4, k, y0));
-    _mm256_storeu_pd(ys + 4 * l, _mm256_fmadd_pd(h4, k, y0));
+    _mm256_storeu_pd(ynew + 4 * l, _mm256_fmadd_pd(w4, k, _mm256_loadu_pd(sum + 4 * l)));
+    _mm256_storeu_pd(ys + 4 * l, _mm256_fmadd_pd(h4, k, _mm256_loadu_pd(base + 4 * l)));
   }
+}
+#endif
+
+/* RK4 stage 1 (iem_node_pass's rk4_first_pass): ynew = y + wdt k, ys = y + h k, f cleared. */
+void iem_rk4_first_pass(int n, double alpha, const double *mass, double wdt, double h,
+                        const double *y, double *f, double *ynew, double *ys) {
+#if IEM_SIMD
+  stage_pass(n, alpha, mass, wdt, h, y, y, y, f, ynew, ys);
 #else
   (void)n; (void)alpha; (void)mass; (void)wdt; (void)h; (void)y; (void)f; (void)ynew; (void)ys;
 #endif
@@ -76,27 +87,9 @@ void iem_rk4_first_pass(int n, double alpha, const double *mass, double wdt, dou
 
 /* RK4 stage 2 or 3 (rk4_mid_pass): ynew += wdt k, ys = y0 + h k, f cleared. */
 void iem_rk4_mid_pass(int n, double alpha, const double *mass, double wdt, double h,
-                     const double *y0, double *f, double *ynew, double *ys) {
+                      const double *y0, double *f, double *ynew, double *ys) {
 #if IEM_SIMD
-  const __m256d w4 = _mm256_set1_pd(wdt), h4 = _mm256_set1_pd(h), al = _mm256_set1_pd(alpha);
-  int l = 0;
-  for (; l + 1 < n; l += 2) {
-    __m256d k0, k1;
-    rates2(_mm256_loadu_pd(ys + 4 * l), _mm256_loadu_pd(ys + 4 * l + 4), f + 2 * l, mass + l,
-           al, &k0, &k1);
-    _mm256_storeu_pd(f + 2 * l, _mm256_setzero_pd());
-    _mm256_storeu_pd(ynew + 4 * l, _mm256_fmadd_pd(w4, k0, _mm256_loadu_pd(ynew + 4 * l)));
-    _mm256_storeu_pd(ynew + 4 * l + 4,
-                     _mm256_fmadd_pd(w4, k1, _mm256_loadu_pd(ynew + 4 * l + 4)));
-    _mm256_storeu_pd(ys + 4 * l, _mm256_fmadd_pd(h4, k0, _mm256_loadu_pd(y0 + 4 * l)));
-    _mm256_storeu_pd(ys + 4 * l + 4, _mm256_fmadd_pd(h4, k1, _mm256_loadu_pd(y0 + 4 * l + 4)));
-  }
-  for (; l < n; l++) {
-    __m256d k = rates1(_mm256_loadu_pd(ys + 4 * l), f + 2 * l, mass[l], alpha);
-    _mm_storeu_pd(f + 2 * l, _mm_setzero_pd());
-    _mm256_storeu_pd(ynew + 4 * l, _mm256_fmadd_pd(w4, k, _mm256_loadu_pd(ynew + 4 * l)));
-    _mm256_storeu_pd(ys + 4 * l, _mm256_fmadd_pd(h4, k, _mm256_loadu_pd(y0 + 4 * l)));
-  }
+  stage_pass(n, alpha, mass, wdt, h, ys, ynew, y0, f, ynew, ys);
 #else
   (void)n; (void)alpha; (void)mass; (void)wdt; (void)h; (void)y0; (void)f; (void)ynew; (void)ys;
 #endif

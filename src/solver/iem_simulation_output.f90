@@ -50,7 +50,7 @@ contains
     integer(i8), allocatable :: cells(:, :), cell_gids(:), material(:)
     real(wp), allocatable :: coords(:, :)
     character(len=:), allocatable :: material_names
-    integer :: k, l, nc, ierr, q, r, l0, l1, i0, j, i, m, cq(4, max_chunk)
+    integer :: k, l, nc, ierr, q, r, l0, l1, i0, j, jc, i, m, cq(4, max_chunk)
     integer(i8) :: nodes(4), g0
     type(alloc_guard_t) :: guard
 
@@ -89,11 +89,11 @@ contains
     if (stat /= 0) return
     ! the counted cells chunk by chunk (their corners without a lookup a cell)
     k = 0
-    do j = 1, this%lat%cells%n_chunks()
-      call this%lat%cells%chunk_corners(j, cq, m)
+    do jc = 1, this%lat%cells%n_chunks()
+      call this%lat%cells%chunk_corners(jc, cq, m)
       do i = 1, m
         if (cq(1, i) > this%lat%n_owned) cycle
-        l = this%lat%cells%chunks(1, j) + i - 1
+        l = this%lat%cells%chunks(1, jc) + i - 1
         k = k + 1
         nodes = [(this%lat%node_gid(cq(q, i)), q = 1, 4)]
         cells(:, k) = nodes
