@@ -10,6 +10,8 @@ module iem_masing_fast
   use iem_kinds, only: wp, ip
   use iem_masing, only: n_masing_constants, k_pos, k_neg, k_branch, k_mirror_pos, k_mirror_neg, &
                         masing_commit, masing_trial
+  use iem_masing_simd, only: masing_simd, c_masing_block
+  use, intrinsic :: iso_c_binding, only: c_int, c_int32_t
   implicit none
   private
   public :: fast_stresses, fast_commit, masing_springs, n_q, q_half_energy
@@ -181,6 +183,8 @@ contains
   !> ends on the curve it starts on (their current one, or the branch a reversal starts) are
   !> evaluated and committed in branch-free loops over a block of springs, the others (a
   !> branch reaches its aim, an overflow retrace its start) take the scalar state machine.
+  !> Where iem_masing_simd.c is built with AVX2, its block does both (the state machine of
+  !> the commits too), bit for bit; the loops here are then left for the tests.
   pure subroutine masing_springs(n, depth, e, p, accept, e_c, s_c, dir, count, e_rev, s_rev, &
       e_max_pos, e_max_neg, s, e_was, s_was)
     integer, intent(in) :: n, depth
@@ -197,91 +201,114 @@ contains
     ! 2 the scalar state machine)
     integer(ip) :: level(block), move(block)
     integer :: todo(block)
+    ! with the C block: the springs of the block left to the state machine
+    integer(c_int32_t) :: slow(block)
+    integer(c_int) :: n_slow
     integer :: b, nb, k, i
     integer(ip) :: lev, m, n0, d0, push, fast, short
-    logical :: moved
+    logical :: moved, simd
     real(wp) :: t, e0, s0, aim, d, x, r, y, ek, ec, sc, et, st, eb, pp, pn, pb, mp, mn
     real(wp) :: mirror, half, on_branch
+    simd = masing_simd()
     do b = 0, n - 1, block
       nb = min(block, n - b)
-      ! the first pass of masing_walk's loop, without branches: the level reached, the
-      ! direction of the move, whether the committed point is pushed as a reversal, and
-      ! whether the move ends on the curve it starts on, with the stress there
-      do k = 1, nb
-        i = b + k
-        ! every operand read once, unconditionally (the top of the stack, R_n and R_(n-1),
-        ! read as R_1 when there is none, and then not used)
-        ek = e(i)
-        ec = e_c(i)
-        sc = s_c(i)
-        n0 = count(i)
-        d0 = dir(i)
-        et = e_rev(max(n0, 1_ip), i)
-        st = s_rev(max(n0, 1_ip), i)
-        eb = e_rev(max(n0 - 1_ip, 1_ip), i)
-        pp = p(i, k_pos)
-        pn = p(i, k_neg)
-        pb = p(i, k_branch)
-        mp = p(i, k_mirror_pos)
-        mn = p(i, k_mirror_neg)
-        ! every comparison and every operation is done unconditionally, the conditions are
-        ! integers 0 / 1 and merge selects between values, so that the loop has no branch
-        m = merge(1_ip, 0_ip, ek > ec) - merge(1_ip, 0_ip, ek < ec)
-        push = merge(1_ip, 0_ip, d0 /= 0 .and. m == -d0 .and. n0 < depth)
-        lev = n0 + push
-        ! start, aim and direction of the branch of that level (masing_walk's level_params):
-        ! R_(lev-1) for lev >= 2, the mirror of the start for lev = 1
-        e0 = merge(ec, et, push == 1)
-        s0 = merge(sc, st, push == 1)
-        mirror = -e0*merge(mp, mn, e0 >= 0.0_wp)
-        aim = merge(merge(et, eb, push == 1), mirror, lev >= 2)
-        d = merge(merge(1.0_wp, -1.0_wp, aim > e0), merge(-1.0_wp, 1.0_wp, e0 > 0.0_wp), &
-                  lev >= 2)
-        ! on it at e: forward short of its aim, or backward (overflow retrace) short of its
-        ! start; an unchanged strain is fast, a NaN is not (masing_commit stores it)
-        short = merge(merge(1_ip, 0_ip, d*(ek - aim) < 0.0_wp), &
-                      merge(1_ip, 0_ip, d*(ek - e0) > 0.0_wp), real(m, wp) == d)
-        fast = max(merge(1_ip, 0_ip, ek == ec), &
-                   abs(m)*max(merge(1_ip, 0_ip, lev == 0), short))
-        ! the skeleton's and the branches' hyperbolas are one function of (x, strength)
-        half = 0.5_wp*(ek - e0)
-        x = merge(ek, half, lev == 0)
-        r = merge(merge(pp, pn, ek >= 0.0_wp), pb, lev == 0)
-        y = x/(1.0_wp + abs(x)/r)
-        on_branch = s0 + 2.0_wp*y
-        s(i) = merge(sc, merge(y, on_branch, lev == 0), m == 0)
-        e_was(i) = ec
-        s_was(i) = sc
-        level(k) = lev
-        move(k) = m*fast
-        ! left to do: a pushed reversal to store (accepted), or the state machine
-        todo(k) = merge(push*abs(m)*merge(1, 0, accept), 2, fast == 1)
-      end do
-      if (accept) then
-        ! what masing_commit does for a fast move (nothing for an unchanged strain)
+      if (simd) then
+        ! the loops below in AVX2 vectors (iem_masing_simd.c), bit for bit; then the state
+        ! machine for the springs in slow
+        call c_masing_block(nb, depth, merge(1, 0, accept), e(b + 1:b + nb), &
+                            p(b + 1:b + nb, k_pos), p(b + 1:b + nb, k_neg), &
+                            p(b + 1:b + nb, k_branch), p(b + 1:b + nb, k_mirror_pos), &
+                            p(b + 1:b + nb, k_mirror_neg), e_c(b + 1:b + nb), &
+                            s_c(b + 1:b + nb), dir(b + 1:b + nb), count(b + 1:b + nb), &
+                            e_rev(:, b + 1:b + nb), s_rev(:, b + 1:b + nb), &
+                            e_max_pos(b + 1:b + nb), e_max_neg(b + 1:b + nb), s(b + 1:b + nb), &
+                            e_was(b + 1:b + nb), s_was(b + 1:b + nb), slow, n_slow)
+        ! (with accept, every spring is committed: n_slow = 0)
+      else
+        ! the first pass of masing_walk's loop, without branches: the level reached, the
+        ! direction of the move, whether the committed point is pushed as a reversal, and
+        ! whether the move ends on the curve it starts on, with the stress there
         do k = 1, nb
           i = b + k
-          moved = move(k) /= 0
-          count(i) = merge(level(k), count(i), moved)
-          dir(i) = merge(move(k), dir(i), moved)
-          e_c(i) = merge(e(i), e_c(i), moved)
-          s_c(i) = merge(s(i), s_c(i), moved)
-          e_max_pos(i) = merge(max(e_max_pos(i), e(i)), e_max_pos(i), moved)
-          e_max_neg(i) = merge(min(e_max_neg(i), e(i)), e_max_neg(i), moved)
+          ! every operand read once, unconditionally (the top of the stack, R_n and R_(n-1),
+          ! read as R_1 when there is none, and then not used)
+          ek = e(i)
+          ec = e_c(i)
+          sc = s_c(i)
+          n0 = count(i)
+          d0 = dir(i)
+          et = e_rev(max(n0, 1_ip), i)
+          st = s_rev(max(n0, 1_ip), i)
+          eb = e_rev(max(n0 - 1_ip, 1_ip), i)
+          pp = p(i, k_pos)
+          pn = p(i, k_neg)
+          pb = p(i, k_branch)
+          mp = p(i, k_mirror_pos)
+          mn = p(i, k_mirror_neg)
+          ! every comparison and every operation is done unconditionally, the conditions are
+          ! integers 0 / 1 and merge selects between values, so that the loop has no branch
+          m = merge(1_ip, 0_ip, ek > ec) - merge(1_ip, 0_ip, ek < ec)
+          push = merge(1_ip, 0_ip, d0 /= 0 .and. m == -d0 .and. n0 < depth)
+          lev = n0 + push
+          ! start, aim and direction of the branch of that level (masing_walk's level_params):
+          ! R_(lev-1) for lev >= 2, the mirror of the start for lev = 1
+          e0 = merge(ec, et, push == 1)
+          s0 = merge(sc, st, push == 1)
+          mirror = -e0*merge(mp, mn, e0 >= 0.0_wp)
+          aim = merge(merge(et, eb, push == 1), mirror, lev >= 2)
+          d = merge(merge(1.0_wp, -1.0_wp, aim > e0), merge(-1.0_wp, 1.0_wp, e0 > 0.0_wp), &
+                    lev >= 2)
+          ! on it at e: forward short of its aim, or backward (overflow retrace) short of its
+          ! start; an unchanged strain is fast, a NaN is not (masing_commit stores it)
+          short = merge(merge(1_ip, 0_ip, d*(ek - aim) < 0.0_wp), &
+                        merge(1_ip, 0_ip, d*(ek - e0) > 0.0_wp), real(m, wp) == d)
+          fast = max(merge(1_ip, 0_ip, ek == ec), &
+                     abs(m)*max(merge(1_ip, 0_ip, lev == 0), short))
+          ! the skeleton's and the branches' hyperbolas are one function of (x, strength)
+          half = 0.5_wp*(ek - e0)
+          x = merge(ek, half, lev == 0)
+          r = merge(merge(pp, pn, ek >= 0.0_wp), pb, lev == 0)
+          y = x/(1.0_wp + abs(x)/r)
+          on_branch = s0 + 2.0_wp*y
+          s(i) = merge(sc, merge(y, on_branch, lev == 0), m == 0)
+          e_was(i) = ec
+          s_was(i) = sc
+          level(k) = lev
+          move(k) = m*fast
+          ! left to do: a pushed reversal to store (accepted), or the state machine
+          todo(k) = merge(push*abs(m)*merge(1, 0, accept), 2, fast == 1)
         end do
-        ! and the reversals it pushed (count(i) is now the level of the new branch)
+        if (accept) then
+          ! what masing_commit does for a fast move (nothing for an unchanged strain)
+          do k = 1, nb
+            i = b + k
+            moved = move(k) /= 0
+            count(i) = merge(level(k), count(i), moved)
+            dir(i) = merge(move(k), dir(i), moved)
+            e_c(i) = merge(e(i), e_c(i), moved)
+            s_c(i) = merge(s(i), s_c(i), moved)
+            e_max_pos(i) = merge(max(e_max_pos(i), e(i)), e_max_pos(i), moved)
+            e_max_neg(i) = merge(min(e_max_neg(i), e(i)), e_max_neg(i), moved)
+          end do
+          ! and the reversals it pushed (count(i) is now the level of the new branch)
 !GCC$ novector
+          do k = 1, nb
+            if (todo(k) /= 1) cycle
+            i = b + k
+            e_rev(count(i), i) = e_was(i)
+            s_rev(count(i), i) = s_was(i)
+          end do
+        end if
+        n_slow = 0
         do k = 1, nb
-          if (todo(k) /= 1) cycle
-          i = b + k
-          e_rev(count(i), i) = e_was(i)
-          s_rev(count(i), i) = s_was(i)
+          if (todo(k) /= 2) cycle
+          n_slow = n_slow + 1
+          slow(n_slow) = k
         end do
       end if
       ! the other springs take the state machine
-      do k = 1, nb
-        if (todo(k) /= 2) cycle
-        i = b + k
+      do k = 1, n_slow
+        i = b + slow(k)
         if (accept) then
           call masing_commit(e(i), 1.0_wp, p(i, k_pos), p(i, k_neg), e_c(i), s_c(i), dir(i), &
                              count(i), e_rev(:, i), s_rev(:, i), e_max_pos(i), e_max_neg(i))

@@ -1,12 +1,13 @@
 /* The branch-free part of iem_masing_fast's masing_springs (the Masing law of many springs
  * read from the top of their stacks, for runs that commit every evaluation) written with
  * AVX2 vectors four springs wide: each spring's level, move and stress as the first loop of
- * masing_springs forms them, with accept the commit of the moves that end on the curve they
- * start on (and the reversals they push), and the list of the other springs, which take
- * the scalar state machine. Every value is the same IEEE operations on the same operands as
- * the Fortran loops (no fused multiply-add there or here: this file is built with
- * -ffp-contract=off), so the results are bit for bit the Fortran loops' (test_iem_masing
- * checks it). gfortran vectorises those loops with masked loads and stores, emulated gathers
+ * masing_springs forms them, one more step of the state machine's walk for the moves past
+ * the end of their curve, with accept the commit of the moves that end on a curve so (and
+ * the reversals they push), and the state machine's walk and commit for the others. Every
+ * value is the same IEEE operations on the same operands as the Fortran loops and
+ * iem_masing's masing_walk (no fused multiply-add: this file is built with
+ * -ffp-contract=off), so the results are bit for bit theirs (test_iem_masing checks it).
+ * gfortran vectorises masing_springs' loops with masked loads and stores, emulated gathers
  * and conversions between its integer and real selections, and leaves the pushes and the
  * choice of the slow springs to branchy scalar loops (docs/nonlinear.md, section 6a).
  *
@@ -232,6 +233,60 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
         x, _mm256_add_pd(one, _mm256_div_pd(_mm256_andnot_pd(sign, x), r)));
     __m256d sk = _mm256_blendv_pd(
         sc, _mm256_blendv_pd(_mm256_add_pd(s0, _mm256_mul_pd(two, y)), y, lev0), moving);
+    /* one step further down masing_walk's loop for the moves past the end of their curve: a
+     * branch past its aim has closed (two levels down), an overflow retrace past its start
+     * is back on the branch below (one level); the moves that end on that curve are done
+     * here too (no reversal pushed), the others take the state machine */
+    __m256d past = _mm256_andnot_pd(fast, moving);
+    if (_mm256_movemask_pd(past)) {
+      __m256d lv = _mm256_blendv_pd(_mm256_sub_pd(lev, one),
+                                    _mm256_max_pd(_mm256_sub_pd(lev, two), zero),
+                                    _mm256_cmp_pd(mr, d, _CMP_EQ_OQ));
+      int32_t l4[4];
+      _mm_storeu_si128((__m128i *)l4, _mm256_cvtpd_epi32(lv));
+      /* R_lv and R_(lv-1), read as R_1 where there is none */
+      t0 = l4[0] > 1 ? l4[0] : 1;
+      t1 = (l4[1] > 1 ? l4[1] : 1) + depth;
+      t2 = (l4[2] > 1 ? l4[2] : 1) + 2 * depth;
+      t3 = (l4[3] > 1 ? l4[3] : 1) + 3 * depth;
+      __m256d e0b = _mm256_set_pd(er[t3], er[t2], er[t1], er[t0]);
+      __m256d s0b = _mm256_set_pd(sr[t3], sr[t2], sr[t1], sr[t0]);
+      t0 = l4[0] - 1 > 1 ? l4[0] - 1 : 1;
+      t1 = (l4[1] - 1 > 1 ? l4[1] - 1 : 1) + depth;
+      t2 = (l4[2] - 1 > 1 ? l4[2] - 1 : 1) + 2 * depth;
+      t3 = (l4[3] - 1 > 1 ? l4[3] - 1 : 1) + 3 * depth;
+      __m256d ebb = _mm256_set_pd(er[t3], er[t2], er[t1], er[t0]);
+      __m256d mirb = _mm256_mul_pd(
+          _mm256_xor_pd(e0b, sign),
+          _mm256_blendv_pd(_mm256_loadu_pd(mn + i), _mm256_loadu_pd(mp + i),
+                           _mm256_cmp_pd(e0b, zero, _CMP_GE_OQ)));
+      __m256d lvm2 = _mm256_cmp_pd(lv, two, _CMP_GE_OQ);
+      __m256d lvm0 = _mm256_cmp_pd(lv, zero, _CMP_EQ_OQ);
+      __m256d aimb = _mm256_blendv_pd(mirb, ebb, lvm2);
+      __m256d db = _mm256_blendv_pd(
+          _mm256_blendv_pd(one, mone, _mm256_cmp_pd(e0b, zero, _CMP_GT_OQ)),
+          _mm256_blendv_pd(mone, one, _mm256_cmp_pd(aimb, e0b, _CMP_GT_OQ)), lvm2);
+      __m256d fwdb =
+          _mm256_cmp_pd(_mm256_mul_pd(db, _mm256_sub_pd(ek, aimb)), zero, _CMP_LT_OQ);
+      __m256d backb =
+          _mm256_cmp_pd(_mm256_mul_pd(db, _mm256_sub_pd(ek, e0b)), zero, _CMP_GT_OQ);
+      __m256d fast2 = _mm256_and_pd(
+          past, _mm256_or_pd(lvm0, _mm256_blendv_pd(backb, fwdb,
+                                                    _mm256_cmp_pd(mr, db, _CMP_EQ_OQ))));
+      __m256d xb = _mm256_blendv_pd(_mm256_mul_pd(half, _mm256_sub_pd(ek, e0b)), ek, lvm0);
+      __m256d rb = _mm256_blendv_pd(
+          _mm256_loadu_pd(pb + i),
+          _mm256_blendv_pd(_mm256_loadu_pd(pn + i), _mm256_loadu_pd(pp + i),
+                           _mm256_cmp_pd(ek, zero, _CMP_GE_OQ)),
+          lvm0);
+      __m256d yb = _mm256_div_pd(
+          xb, _mm256_add_pd(one, _mm256_div_pd(_mm256_andnot_pd(sign, xb), rb)));
+      __m256d sb = _mm256_blendv_pd(_mm256_add_pd(s0b, _mm256_mul_pd(two, yb)), yb, lvm0);
+      sk = _mm256_blendv_pd(sk, sb, fast2);
+      lev = _mm256_blendv_pd(lev, lv, fast2);
+      push = _mm256_andnot_pd(fast2, push);
+      fast = _mm256_or_pd(fast, fast2);
+    }
     _mm256_storeu_pd(s + i, sk);
     _mm256_storeu_pd(e_was + i, ec);
     _mm256_storeu_pd(s_was + i, sc);
