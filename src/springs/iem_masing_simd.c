@@ -161,6 +161,22 @@ static void commit_slow(int i, int depth, double ek, const double *pp, const dou
   s[i] = st;
 }
 
+#if IEM_SIMD
+/* Of the four stacks from er, sr (columns of depth values) at the levels l[0..3]: R_l's
+ * strain and stress and R_(l-1)'s strain, each read as R_1 where there is none. */
+static inline void stack_tops(const double *er, const double *sr, const int32_t *l, int depth,
+                              __m256d *e_top, __m256d *s_top, __m256d *e_below) {
+  int64_t t[4], b[4];
+  for (int j = 0; j < 4; j++) {
+    t[j] = (int64_t)j * depth + (l[j] > 1 ? l[j] : 1) - 1;
+    b[j] = (int64_t)j * depth + (l[j] - 1 > 1 ? l[j] - 1 : 1) - 1;
+  }
+  *e_top = _mm256_set_pd(er[t[3]], er[t[2]], er[t[1]], er[t[0]]);
+  *s_top = _mm256_set_pd(sr[t[3]], sr[t[2]], sr[t[1]], sr[t[0]]);
+  *e_below = _mm256_set_pd(er[b[3]], er[b[2]], er[b[1]], er[b[0]]);
+}
+#endif
+
 /* masing_springs' first loop over n springs (strains e, constants of spring i pp[i] ..
  * mn[i]: k_pos, k_neg, k_branch, k_mirror_pos, k_mirror_neg) and with accept (non-zero) the
  * commit of every move (the fast ones in vectors, with the reversals they push, the others
@@ -184,19 +200,9 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
     __m128i n0 = _mm_loadu_si128((const __m128i *)(count + i)),
             d0 = _mm_loadu_si128((const __m128i *)(dir + i));
     /* the top of each stack, R_n and R_(n-1), read as R_1 where there is none */
-    int32_t t0, t1, t2, t3;
-    const double *er = e_rev + (int64_t)i * depth - 1, *sr = s_rev + (int64_t)i * depth - 1;
-    t0 = count[i] > 1 ? count[i] : 1;
-    t1 = (count[i + 1] > 1 ? count[i + 1] : 1) + depth;
-    t2 = (count[i + 2] > 1 ? count[i + 2] : 1) + 2 * depth;
-    t3 = (count[i + 3] > 1 ? count[i + 3] : 1) + 3 * depth;
-    __m256d et = _mm256_set_pd(er[t3], er[t2], er[t1], er[t0]);
-    __m256d st = _mm256_set_pd(sr[t3], sr[t2], sr[t1], sr[t0]);
-    t0 = count[i] - 1 > 1 ? count[i] - 1 : 1;
-    t1 = (count[i + 1] - 1 > 1 ? count[i + 1] - 1 : 1) + depth;
-    t2 = (count[i + 2] - 1 > 1 ? count[i + 2] - 1 : 1) + 2 * depth;
-    t3 = (count[i + 3] - 1 > 1 ? count[i + 3] - 1 : 1) + 3 * depth;
-    __m256d eb = _mm256_set_pd(er[t3], er[t2], er[t1], er[t0]);
+    const double *er = e_rev + (int64_t)i * depth, *sr = s_rev + (int64_t)i * depth;
+    __m256d et, st, eb;
+    stack_tops(er, sr, count + i, depth, &et, &st, &eb);
     __m256d gt = _mm256_cmp_pd(ek, ec, _CMP_GT_OQ), lt = _mm256_cmp_pd(ek, ec, _CMP_LT_OQ);
     __m256d mr = _mm256_sub_pd(_mm256_and_pd(gt, one), _mm256_and_pd(lt, one));
     __m256d n0d = _mm256_cvtepi32_pd(n0), d0d = _mm256_cvtepi32_pd(d0);
@@ -245,17 +251,8 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
       int32_t l4[4];
       _mm_storeu_si128((__m128i *)l4, _mm256_cvtpd_epi32(lv));
       /* R_lv and R_(lv-1), read as R_1 where there is none */
-      t0 = l4[0] > 1 ? l4[0] : 1;
-      t1 = (l4[1] > 1 ? l4[1] : 1) + depth;
-      t2 = (l4[2] > 1 ? l4[2] : 1) + 2 * depth;
-      t3 = (l4[3] > 1 ? l4[3] : 1) + 3 * depth;
-      __m256d e0b = _mm256_set_pd(er[t3], er[t2], er[t1], er[t0]);
-      __m256d s0b = _mm256_set_pd(sr[t3], sr[t2], sr[t1], sr[t0]);
-      t0 = l4[0] - 1 > 1 ? l4[0] - 1 : 1;
-      t1 = (l4[1] - 1 > 1 ? l4[1] - 1 : 1) + depth;
-      t2 = (l4[2] - 1 > 1 ? l4[2] - 1 : 1) + 2 * depth;
-      t3 = (l4[3] - 1 > 1 ? l4[3] - 1 : 1) + 3 * depth;
-      __m256d ebb = _mm256_set_pd(er[t3], er[t2], er[t1], er[t0]);
+      __m256d e0b, s0b, ebb;
+      stack_tops(er, sr, l4, depth, &e0b, &s0b, &ebb);
       __m256d mirb = _mm256_mul_pd(
           _mm256_xor_pd(e0b, sign),
           _mm256_blendv_pd(_mm256_loadu_pd(mn + i), _mm256_loadu_pd(mp + i),
