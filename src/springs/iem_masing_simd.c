@@ -175,6 +175,41 @@ static inline void stack_tops(const double *er, const double *sr, const int32_t 
   *s_top = _mm256_set_pd(sr[t[3]], sr[t[2]], sr[t[1]], sr[t[0]]);
   *e_below = _mm256_set_pd(er[b[3]], er[b[2]], er[b[1]], er[b[0]]);
 }
+
+/* Whether moves of direction mr (+-1) at the strains ek end on the curve of a level (lev0:
+ * level 0, the skeleton, where every move does; deep2: level 2 or more) that starts at e0 and
+ * aims at below (R_(level-1)), or at the mirror of e0 on level 1 (mirror factors mp, mn):
+ * forward short of its aim, or backward short of its start (masing_walk's test); d the
+ * curve's direction. */
+static inline __m256d on_curve(__m256d ek, __m256d mr, __m256d e0, __m256d below,
+                               __m256d deep2, __m256d lev0, __m256d mp, __m256d mn,
+                               __m256d *d) {
+  const __m256d one = _mm256_set1_pd(1.0), mone = _mm256_set1_pd(-1.0),
+                zero = _mm256_setzero_pd(), sign = _mm256_set1_pd(-0.0);
+  __m256d mirror = _mm256_mul_pd(_mm256_xor_pd(e0, sign),
+                                 _mm256_blendv_pd(mn, mp, _mm256_cmp_pd(e0, zero, _CMP_GE_OQ)));
+  __m256d aim = _mm256_blendv_pd(mirror, below, deep2);
+  *d = _mm256_blendv_pd(_mm256_blendv_pd(one, mone, _mm256_cmp_pd(e0, zero, _CMP_GT_OQ)),
+                        _mm256_blendv_pd(mone, one, _mm256_cmp_pd(aim, e0, _CMP_GT_OQ)), deep2);
+  __m256d fwd = _mm256_cmp_pd(_mm256_mul_pd(*d, _mm256_sub_pd(ek, aim)), zero, _CMP_LT_OQ);
+  __m256d back = _mm256_cmp_pd(_mm256_mul_pd(*d, _mm256_sub_pd(ek, e0)), zero, _CMP_GT_OQ);
+  return _mm256_or_pd(lev0, _mm256_blendv_pd(back, fwd, _mm256_cmp_pd(mr, *d, _CMP_EQ_OQ)));
+}
+
+/* The stress at the strains ek on the skeleton (lev0; strengths pp, pn by sign) or on the
+ * branch from (e0, s0) (strength pb): the skeleton's and the branches' hyperbolas are one
+ * function of (x, strength). */
+static inline __m256d curve_stress(__m256d ek, __m256d e0, __m256d s0, __m256d lev0,
+                                   __m256d pp, __m256d pn, __m256d pb) {
+  const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(),
+                sign = _mm256_set1_pd(-0.0);
+  __m256d x = _mm256_blendv_pd(_mm256_mul_pd(_mm256_set1_pd(0.5), _mm256_sub_pd(ek, e0)), ek,
+                               lev0);
+  __m256d r = _mm256_blendv_pd(pb, _mm256_blendv_pd(pn, pp, _mm256_cmp_pd(ek, zero, _CMP_GE_OQ)),
+                               lev0);
+  __m256d y = _mm256_div_pd(x, _mm256_add_pd(one, _mm256_div_pd(_mm256_andnot_pd(sign, x), r)));
+  return _mm256_blendv_pd(_mm256_add_pd(s0, _mm256_mul_pd(_mm256_set1_pd(2.0), y)), y, lev0);
+}
 #endif
 
 /* masing_springs' first loop over n springs (strains e, constants of spring i pp[i] ..
@@ -190,8 +225,7 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
                       double *e_was, double *s_was, int32_t *slow, int32_t *n_slow) {
   int i = 0, ns = 0;
 #if IEM_SIMD
-  const __m256d one = _mm256_set1_pd(1.0), mone = _mm256_set1_pd(-1.0),
-                zero = _mm256_setzero_pd(), half = _mm256_set1_pd(0.5),
+  const __m256d one = _mm256_set1_pd(1.0), zero = _mm256_setzero_pd(),
                 two = _mm256_set1_pd(2.0), sign = _mm256_set1_pd(-0.0),
                 deep = _mm256_set1_pd((double)depth);
   for (; i + 3 < n; i += 4) {
@@ -212,33 +246,15 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
         _mm256_cmp_pd(n0d, deep, _CMP_LT_OQ));
     __m256d lev = _mm256_add_pd(n0d, _mm256_and_pd(push, one));
     __m256d e0 = _mm256_blendv_pd(et, ec, push), s0 = _mm256_blendv_pd(st, sc, push);
-    __m256d mirror = _mm256_mul_pd(
-        _mm256_xor_pd(e0, sign),
-        _mm256_blendv_pd(_mm256_loadu_pd(mn + i), _mm256_loadu_pd(mp + i),
-                         _mm256_cmp_pd(e0, zero, _CMP_GE_OQ)));
-    __m256d lev2 = _mm256_cmp_pd(lev, two, _CMP_GE_OQ);
     __m256d lev0 = _mm256_cmp_pd(lev, zero, _CMP_EQ_OQ);
-    __m256d aim = _mm256_blendv_pd(mirror, _mm256_blendv_pd(eb, et, push), lev2);
-    __m256d d = _mm256_blendv_pd(
-        _mm256_blendv_pd(one, mone, _mm256_cmp_pd(e0, zero, _CMP_GT_OQ)),
-        _mm256_blendv_pd(mone, one, _mm256_cmp_pd(aim, e0, _CMP_GT_OQ)), lev2);
-    __m256d fwd = _mm256_cmp_pd(_mm256_mul_pd(d, _mm256_sub_pd(ek, aim)), zero, _CMP_LT_OQ);
-    __m256d back = _mm256_cmp_pd(_mm256_mul_pd(d, _mm256_sub_pd(ek, e0)), zero, _CMP_GT_OQ);
-    __m256d shrt = _mm256_blendv_pd(back, fwd, _mm256_cmp_pd(mr, d, _CMP_EQ_OQ));
+    __m256d mpk = _mm256_loadu_pd(mp + i), mnk = _mm256_loadu_pd(mn + i),
+            ppk = _mm256_loadu_pd(pp + i), pnk = _mm256_loadu_pd(pn + i),
+            pbk = _mm256_loadu_pd(pb + i), d;
+    __m256d shrt = on_curve(ek, mr, e0, _mm256_blendv_pd(eb, et, push),
+                            _mm256_cmp_pd(lev, two, _CMP_GE_OQ), lev0, mpk, mnk, &d);
     __m256d moving = _mm256_cmp_pd(mr, zero, _CMP_NEQ_OQ);
-    __m256d fast = _mm256_or_pd(_mm256_cmp_pd(ek, ec, _CMP_EQ_OQ),
-                                _mm256_and_pd(moving, _mm256_or_pd(lev0, shrt)));
-    /* the skeleton's and the branches' hyperbolas are one function of (x, strength) */
-    __m256d x = _mm256_blendv_pd(_mm256_mul_pd(half, _mm256_sub_pd(ek, e0)), ek, lev0);
-    __m256d r = _mm256_blendv_pd(
-        _mm256_loadu_pd(pb + i),
-        _mm256_blendv_pd(_mm256_loadu_pd(pn + i), _mm256_loadu_pd(pp + i),
-                         _mm256_cmp_pd(ek, zero, _CMP_GE_OQ)),
-        lev0);
-    __m256d y = _mm256_div_pd(
-        x, _mm256_add_pd(one, _mm256_div_pd(_mm256_andnot_pd(sign, x), r)));
-    __m256d sk = _mm256_blendv_pd(
-        sc, _mm256_blendv_pd(_mm256_add_pd(s0, _mm256_mul_pd(two, y)), y, lev0), moving);
+    __m256d fast = _mm256_or_pd(_mm256_cmp_pd(ek, ec, _CMP_EQ_OQ), _mm256_and_pd(moving, shrt));
+    __m256d sk = _mm256_blendv_pd(sc, curve_stress(ek, e0, s0, lev0, ppk, pnk, pbk), moving);
     /* one step further down masing_walk's loop for the moves past the end of their curve: a
      * branch past its aim has closed (two levels down), an overflow retrace past its start
      * is back on the branch below (one level); the moves that end on that curve are done
@@ -253,32 +269,11 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
       /* R_lv and R_(lv-1), read as R_1 where there is none */
       __m256d e0b, s0b, ebb;
       stack_tops(er, sr, l4, depth, &e0b, &s0b, &ebb);
-      __m256d mirb = _mm256_mul_pd(
-          _mm256_xor_pd(e0b, sign),
-          _mm256_blendv_pd(_mm256_loadu_pd(mn + i), _mm256_loadu_pd(mp + i),
-                           _mm256_cmp_pd(e0b, zero, _CMP_GE_OQ)));
-      __m256d lvm2 = _mm256_cmp_pd(lv, two, _CMP_GE_OQ);
-      __m256d lvm0 = _mm256_cmp_pd(lv, zero, _CMP_EQ_OQ);
-      __m256d aimb = _mm256_blendv_pd(mirb, ebb, lvm2);
-      __m256d db = _mm256_blendv_pd(
-          _mm256_blendv_pd(one, mone, _mm256_cmp_pd(e0b, zero, _CMP_GT_OQ)),
-          _mm256_blendv_pd(mone, one, _mm256_cmp_pd(aimb, e0b, _CMP_GT_OQ)), lvm2);
-      __m256d fwdb =
-          _mm256_cmp_pd(_mm256_mul_pd(db, _mm256_sub_pd(ek, aimb)), zero, _CMP_LT_OQ);
-      __m256d backb =
-          _mm256_cmp_pd(_mm256_mul_pd(db, _mm256_sub_pd(ek, e0b)), zero, _CMP_GT_OQ);
+      __m256d lvm0 = _mm256_cmp_pd(lv, zero, _CMP_EQ_OQ), db;
       __m256d fast2 = _mm256_and_pd(
-          past, _mm256_or_pd(lvm0, _mm256_blendv_pd(backb, fwdb,
-                                                    _mm256_cmp_pd(mr, db, _CMP_EQ_OQ))));
-      __m256d xb = _mm256_blendv_pd(_mm256_mul_pd(half, _mm256_sub_pd(ek, e0b)), ek, lvm0);
-      __m256d rb = _mm256_blendv_pd(
-          _mm256_loadu_pd(pb + i),
-          _mm256_blendv_pd(_mm256_loadu_pd(pn + i), _mm256_loadu_pd(pp + i),
-                           _mm256_cmp_pd(ek, zero, _CMP_GE_OQ)),
-          lvm0);
-      __m256d yb = _mm256_div_pd(
-          xb, _mm256_add_pd(one, _mm256_div_pd(_mm256_andnot_pd(sign, xb), rb)));
-      __m256d sb = _mm256_blendv_pd(_mm256_add_pd(s0b, _mm256_mul_pd(two, yb)), yb, lvm0);
+          past, on_curve(ek, mr, e0b, ebb, _mm256_cmp_pd(lv, two, _CMP_GE_OQ), lvm0, mpk, mnk,
+                         &db));
+      __m256d sb = curve_stress(ek, e0b, s0b, lvm0, ppk, pnk, pbk);
       sk = _mm256_blendv_pd(sk, sb, fast2);
       lev = _mm256_blendv_pd(lev, lv, fast2);
       push = _mm256_andnot_pd(fast2, push);
