@@ -40,6 +40,7 @@ module iem_exact_sum
     procedure :: reset => exact_sum_reset
     procedure :: add_scalar => exact_sum_add_scalar
     procedure :: add_array => exact_sum_add_array
+    procedure :: add_scaled => exact_sum_add_scaled
     generic :: add => add_scalar, add_array
     procedure :: merge => exact_sum_merge
     procedure :: normalise => exact_sum_normalise
@@ -88,6 +89,25 @@ contains
       first = last + 1
     end do
   end subroutine exact_sum_add_array
+
+  !> Add w*x(i) for every element of x exactly (each product rounded as w*x(i) alone is):
+  !> the same exact sum as add(w*x(i)) term by term, without a call a term.
+  pure subroutine exact_sum_add_scaled(this, x, w)
+    class(exact_sum_t), intent(inout) :: this
+    real(wp), intent(in) :: x(:), w
+    integer(i8) :: i, first, last, n
+    n = size(x, kind=i8)
+    first = 1
+    do while (first <= n)
+      last = min(n, first + (exact_sum_renorm_interval - this%n_pending) - 1)
+      do i = first, last
+        call deposit(this, w*x(i))
+      end do
+      this%n_pending = this%n_pending + (last - first + 1)
+      if (this%n_pending >= exact_sum_renorm_interval) call this%normalise()
+      first = last + 1
+    end do
+  end subroutine exact_sum_add_scaled
 
   !> The hot kernel: x = m * 2**(p - 1074), m the signed 53-bit integer significand, p >= 0
   !> the position of its lowest bit; m * 2**s (s = mod(p, 32)) is cut into two limbs in

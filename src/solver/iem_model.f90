@@ -455,28 +455,25 @@ contains
     class(model_t), intent(inout) :: this
     type(local_lattice_t), intent(in) :: lat
     real(wp), intent(in) :: wdt
-    integer :: c, l, n, j, m, c0, fc(max_chunk)
-    do n = 1, size(this%pe_slot)
-      call this%w_ext_acc%add(wdt*this%pe_slot(n))
-    end do
-    do n = 1, size(this%pr_bc)
-      call this%w_ext_acc%add(wdt*this%pr_bc(n))
-    end do
+    integer :: c, j, m, c0, k, fc(max_chunk)
+    real(wp) :: counted(max_chunk)
+    call this%w_ext_acc%add_scaled(this%pe_slot, wdt)
+    call this%w_ext_acc%add_scaled(this%pr_bc, wdt)
     if (this%beta > 0.0_wp) then
-      ! the counted cells (first corner owned), in cell order
+      ! the counted cells (first corner owned), a chunk at a time
       do j = 1, lat%cells%n_chunks()
         call lat%first_corners(j, fc, m)
         c0 = lat%cells%chunks(1, j) - 1
+        k = 0
         do c = 1, m
-          if (fc(c) <= lat%n_owned) call this%w_damp_acc%add(wdt*this%pw_cell(c0 + c))
+          if (fc(c) > lat%n_owned) cycle
+          k = k + 1
+          counted(k) = this%pw_cell(c0 + c)
         end do
+        call this%w_damp_acc%add_scaled(counted(1:k), wdt)
       end do
     end if
-    if (this%alpha > 0.0_wp) then
-      do l = 1, lat%n_owned
-        call this%w_damp_acc%add(wdt*this%pw_node(l))
-      end do
-    end if
+    if (this%alpha > 0.0_wp) call this%w_damp_acc%add_scaled(this%pw_node(1:lat%n_owned), wdt)
   end subroutine model_add_work
 
   !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of

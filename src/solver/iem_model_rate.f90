@@ -13,7 +13,7 @@ contains
   !> Documented at its interface in iem_model.f90.
   module procedure model_rate
     real(wp) :: r, a_imp
-    integer :: l, b, ld, comp, n, s, c, j, m, c0, fc(max_chunk)
+    integer :: l, b, ld, comp, n, s
     logical :: changed, accept, keep, timed, energies
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
@@ -68,15 +68,7 @@ contains
         call cells(fs, this%split%cells_bd, this%split%at_bd)
         call this%split%sum_side(fs)
         p_damp = 0.0_wp
-        if (this%beta > 0.0_wp) then
-          do j = 1, lat%cells%n_chunks()
-            call lat%first_corners(j, fc, m)
-            c0 = lat%cells%chunks(1, j) - 1
-            do c = 1, m
-              if (fc(c) <= lat%n_owned) p_damp = p_damp + this%pw_cell(c0 + c)
-            end do
-          end do
-        end if
+        if (this%beta > 0.0_wp) call counted_cell_powers(lat, this%pw_cell, p_damp)
       end if
       ! external loads: rebuilt only when a time function has changed
       changed = .false.
@@ -124,12 +116,8 @@ contains
           p_ext = p_ext + this%pr_bc(n)
         end if
       end do
-      if (this%alpha > 0.0_wp) then
-        do l = 1, lat%n_owned
-          this%pw_node(l) = this%alpha*this%mass(l)*(y(3, l)**2 + y(4, l)**2)
-          p_damp = p_damp + this%pw_node(l)
-        end do
-      end if
+      if (this%alpha > 0.0_wp) call mass_damping_powers(lat%n_owned, this%alpha, this%mass, y, &
+                                                        this%pw_node, p_damp)
       ! the loads act as negative cell forces; then the pass over the owned nodes, which clears
       ! f: accelerations, or an RK4 stage's update
       do s = 1, size(this%ext_node)
@@ -188,11 +176,7 @@ contains
         end if
       end do
       ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
-      if (this%omega_cap > 0.0_wp) then
-        do l = 1, lat%n_owned
-          acc(3:4, l) = this%omega_cap*(y(3:4, l) - y(5:6, l))
-        end do
-      end if
+      if (this%omega_cap > 0.0_wp) call filter_rates(lat%n_owned, this%omega_cap, y, acc)
     end subroutine evaluate
 
     !> The halo exchange (1), its start (2) or its finish (3), timed as such.
@@ -277,4 +261,52 @@ contains
       end if
     end subroutine chunks
   end procedure model_rate
+
+  !> The mass damping's power alpha m |v|^2 of each of the nodes 1..n of the state y in pw,
+  !> and their sum, in node order, added to p. (Out of model_rate's internal procedure, whose
+  !> host variables gfortran kept in memory: a store and a load a node.)
+  pure subroutine mass_damping_powers(n, alpha, mass, y, pw, p)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: alpha, mass(:), y(:, :)
+    real(wp), intent(inout) :: pw(:), p
+    real(wp) :: sum_p
+    integer :: l
+    sum_p = p
+    do l = 1, n
+      pw(l) = alpha*mass(l)*(y(3, l)**2 + y(4, l)**2)
+      sum_p = sum_p + pw(l)
+    end do
+    p = sum_p
+  end subroutine mass_damping_powers
+
+  !> The sum p of the stiffness damping's powers pw of the cells this rank counts (first
+  !> corner owned), in cell order.
+  pure subroutine counted_cell_powers(lat, pw, p)
+    type(local_lattice_t), intent(in) :: lat
+    real(wp), intent(in) :: pw(:)
+    real(wp), intent(out) :: p
+    real(wp) :: sum_p
+    integer :: j, c, m, c0, fc(max_chunk)
+    sum_p = 0.0_wp
+    do j = 1, lat%cells%n_chunks()
+      call lat%first_corners(j, fc, m)
+      c0 = lat%cells%chunks(1, j) - 1
+      do c = 1, m
+        if (fc(c) <= lat%n_owned) sum_p = sum_p + pw(c0 + c)
+      end do
+    end do
+    p = sum_p
+  end subroutine counted_cell_powers
+
+  !> Capped stiffness damping: the rates acc(3:4, l) = omega_cap (v - w) of the filtered
+  !> velocities w = y(5:6, l) of the nodes 1..n.
+  pure subroutine filter_rates(n, omega_cap, y, acc)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: omega_cap, y(:, :)
+    real(wp), intent(inout) :: acc(:, :)
+    integer :: l
+    do l = 1, n
+      acc(3:4, l) = omega_cap*(y(3:4, l) - y(5:6, l))
+    end do
+  end subroutine filter_rates
 end submodule iem_model_rate
