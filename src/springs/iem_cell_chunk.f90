@@ -13,9 +13,9 @@ module iem_cell_chunk
   implicit none
   private
   public :: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_elastic, &
-            chunk_elastic_forces, &
-            chunk_elastic_plain, chunk_elastic_plain_energy, chunk_elastic_plain_lean, &
-            chunk_elastic_lean, chunk_general, law_coefficients, damping_stresses
+            chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_paper, &
+            chunk_elastic_plain_energy, chunk_elastic_plain_lean, chunk_elastic_lean, &
+            chunk_general, law_coefficients, damping_stresses
 
   !> The largest |(l/l0)^2 - 1| of an edge that edge_near measures.
   real(wp), parameter :: near_limit = 1.0_wp/16.0_wp
@@ -171,6 +171,7 @@ contains
     do c = 1, m
       include 'elastic_loop/iem_cell_elastic_cell_law.inc'
       include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law.inc'
       include 'elastic_loop/iem_cell_elastic_energy.inc'
       include 'elastic_loop/iem_cell_elastic_damped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'
@@ -192,10 +193,30 @@ contains
     do c = 1, m
       include 'elastic_loop/iem_cell_elastic_cell_law.inc'
       include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law.inc'
       include 'elastic_loop/iem_cell_elastic_damped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic_forces
+
+  !> chunk_elastic_plain for the paper's cell (lc1(3) = lc1(5) = 0): the same forces.
+  pure subroutine chunk_elastic_paper(k, m, bot, top, v, lc1, fx, fy)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    real(wp), intent(in) :: lc1(5)
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
+
+    include 'elastic_loop/iem_cell_elastic_one_law.inc'
+    do c = 1, m
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law_paper.inc'
+      include 'elastic_loop/iem_cell_elastic_undamped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
+    end do
+  end subroutine chunk_elastic_paper
 
   !> chunk_elastic_forces for cells of one law (coefficients lc1) without damping.
   pure subroutine chunk_elastic_plain(k, m, bot, top, v, lc1, fx, fy)
@@ -210,6 +231,7 @@ contains
     include 'elastic_loop/iem_cell_elastic_one_law.inc'
     do c = 1, m
       include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law.inc'
       include 'elastic_loop/iem_cell_elastic_undamped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
@@ -230,6 +252,7 @@ contains
     include 'elastic_loop/iem_cell_elastic_one_law.inc'
     do c = 1, m
       include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law.inc'
       include 'elastic_loop/iem_cell_elastic_energy.inc'
       include 'elastic_loop/iem_cell_elastic_undamped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'
@@ -255,6 +278,7 @@ contains
     n_past = 0
     do c = 1, m
       include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law.inc'
       include 'elastic_loop/iem_cell_elastic_onsets.inc'
       include 'elastic_loop/iem_cell_elastic_undamped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'
@@ -284,6 +308,7 @@ contains
     do c = 1, m
       include 'elastic_loop/iem_cell_elastic_cell_law.inc'
       include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law.inc'
       include 'elastic_loop/iem_cell_elastic_onsets.inc'
       include 'elastic_loop/iem_cell_elastic_damped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'

@@ -14,7 +14,7 @@ module iem_cell_kernel
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk
   use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_elastic, &
-                            chunk_elastic_forces, chunk_elastic_plain, &
+                            chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_paper, &
                             chunk_elastic_plain_energy, chunk_elastic_plain_lean, &
                             chunk_elastic_lean, chunk_general, law_coefficients, damping_stresses
   use iem_fracture, only: fracture_t
@@ -159,7 +159,7 @@ contains
     integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
     logical :: keep_terms
-    logical :: lean, intact
+    logical :: lean, intact, paper
     real(wp) :: onset(3), lc1(5)
     integer(i8) :: n_past
 
@@ -180,6 +180,8 @@ contains
     bp = 0.0_wp
     tp = 0.0_wp
     lc1 = law_coefficients(k)
+    ! the paper's cell: its law has no terms of lc1(3) and lc1(5)
+    paper = lc1(3) == 0.0_wp .and. lc1(5) == 0.0_wp
     do i = 1, 5
       lc(:, i) = lc1(i)
     end do
@@ -285,7 +287,10 @@ contains
         else if (damped) then
           call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bw, tw, hd, ud, pw)
         end if
-        if (lean .and. .not. (present(fr) .or. damped .or. by_material)) then
+        if (lean .and. .not. (present(fr) .or. damped .or. by_material) .and. paper) then
+          call chunk_elastic_paper(k, m, bot, top, v, lc1, fx, fy)
+          intact = .true.
+        else if (lean .and. .not. (present(fr) .or. damped .or. by_material)) then
           call chunk_elastic_plain(k, m, bot, top, v, lc1, fx, fy)
           intact = .true.
         else if (lean .and. .not. present(fr)) then
