@@ -1,10 +1,10 @@
 !> The force kernel's work on one chunk of cells of a grid row (iem_cell_kernel gathers the
 !> chunk's two node rows and sums its corner forces per node): the edges of the chunk, each
-!> measured once; the elastic cells in one fused loop that keeps every intermediate in
-!> registers; and the general path, with the intermediates in arrays, for the nonlinear
-!> springs and the cells that fracture has reached.
+!> measured once; the law's coefficients and the damping stresses of the elastic cells (whose
+!> fused loops are iem_cell_elastic's); and the general path, with the intermediates in
+!> arrays, for the nonlinear springs and the cells that fracture has reached.
 module iem_cell_chunk
-  use iem_kinds, only: wp, i8
+  use iem_kinds, only: wp
   use iem_spring_constants, only: cell_constants_t, law_bending
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk, cell_law, cell_law_mixed, nonlinear_law
@@ -12,10 +12,8 @@ module iem_cell_chunk
   use iem_fracture_kernel, only: fracture_chunk, damaged_cell
   implicit none
   private
-  public :: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_elastic, &
-            chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_paper, &
-            chunk_elastic_plain_energy, chunk_elastic_plain_lean, chunk_elastic_lean, &
-            chunk_general, law_coefficients, damping_stresses
+  public :: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_general, &
+            law_coefficients, damping_stresses
 
   !> The largest |(l/l0)^2 - 1| of an edge that edge_near measures.
   real(wp), parameter :: near_limit = 1.0_wp/16.0_wp
@@ -151,169 +149,6 @@ contains
       c = [2.0_wp*k%ce + 4.0_wp*k%ch, 2.0_wp*k%ch, 0.0_wp, 2.0_wp*k%cg, 0.0_wp]
     end if
   end function law_coefficients
-
-  !> The elastic cells of a chunk in one loop: per cell its shear measures, its law (the
-  !> coefficients lc(cell, :) of law_coefficients), the damping stresses hd, ud (0 when not
-  !> damped), the corner forces fx, fy(cell, corner) and the strain energy en; the edge
-  !> strains ep and shear measures s are kept (for fracture's test).
-  pure subroutine chunk_elastic(k, m, bot, top, v, lc, hd, ud, fx, fy, en, ep, s)
-    type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: m
-    type(edge_row_t), intent(in) :: bot, top
-    type(edge_col_t), intent(in) :: v
-    real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
-    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk)
-    real(wp), intent(out) :: ep(chunk, 4), s(chunk, 4)
-    include 'elastic_loop/iem_cell_elastic_locals.inc'
-
-    ilx = k%il0(1)
-    ily = k%il0(2)
-    do c = 1, m
-      include 'elastic_loop/iem_cell_elastic_cell_law.inc'
-      include 'elastic_loop/iem_cell_elastic_strains.inc'
-      include 'elastic_loop/iem_cell_elastic_law.inc'
-      include 'elastic_loop/iem_cell_elastic_energy.inc'
-      include 'elastic_loop/iem_cell_elastic_damped.inc'
-      include 'elastic_loop/iem_cell_elastic_forces.inc'
-    end do
-  end subroutine chunk_elastic
-
-  !> chunk_elastic's corner forces fx, fy alone (no energies, strains or shear measures kept).
-  pure subroutine chunk_elastic_forces(k, m, bot, top, v, lc, hd, ud, fx, fy)
-    type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: m
-    type(edge_row_t), intent(in) :: bot, top
-    type(edge_col_t), intent(in) :: v
-    real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
-    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
-    include 'elastic_loop/iem_cell_elastic_locals.inc'
-
-    ilx = k%il0(1)
-    ily = k%il0(2)
-    do c = 1, m
-      include 'elastic_loop/iem_cell_elastic_cell_law.inc'
-      include 'elastic_loop/iem_cell_elastic_strains.inc'
-      include 'elastic_loop/iem_cell_elastic_law.inc'
-      include 'elastic_loop/iem_cell_elastic_damped.inc'
-      include 'elastic_loop/iem_cell_elastic_forces.inc'
-    end do
-  end subroutine chunk_elastic_forces
-
-  !> chunk_elastic_plain for the paper's cell (lc1(3) = lc1(5) = 0): the same forces.
-  pure subroutine chunk_elastic_paper(k, m, bot, top, v, lc1, fx, fy)
-    type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: m
-    type(edge_row_t), intent(in) :: bot, top
-    type(edge_col_t), intent(in) :: v
-    real(wp), intent(in) :: lc1(5)
-    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
-    include 'elastic_loop/iem_cell_elastic_locals.inc'
-
-    include 'elastic_loop/iem_cell_elastic_one_law.inc'
-    do c = 1, m
-      include 'elastic_loop/iem_cell_elastic_strains.inc'
-      include 'elastic_loop/iem_cell_elastic_law_paper.inc'
-      include 'elastic_loop/iem_cell_elastic_undamped.inc'
-      include 'elastic_loop/iem_cell_elastic_forces.inc'
-    end do
-  end subroutine chunk_elastic_paper
-
-  !> chunk_elastic_forces for cells of one law (coefficients lc1) without damping.
-  pure subroutine chunk_elastic_plain(k, m, bot, top, v, lc1, fx, fy)
-    type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: m
-    type(edge_row_t), intent(in) :: bot, top
-    type(edge_col_t), intent(in) :: v
-    real(wp), intent(in) :: lc1(5)
-    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
-    include 'elastic_loop/iem_cell_elastic_locals.inc'
-
-    include 'elastic_loop/iem_cell_elastic_one_law.inc'
-    do c = 1, m
-      include 'elastic_loop/iem_cell_elastic_strains.inc'
-      include 'elastic_loop/iem_cell_elastic_law.inc'
-      include 'elastic_loop/iem_cell_elastic_undamped.inc'
-      include 'elastic_loop/iem_cell_elastic_forces.inc'
-    end do
-  end subroutine chunk_elastic_plain
-
-  !> chunk_elastic for cells of one law (coefficients lc1) without damping: the corner forces,
-  !> each cell's strain energy en, edge strains ep and shear measures s.
-  pure subroutine chunk_elastic_plain_energy(k, m, bot, top, v, lc1, fx, fy, en, ep, s)
-    type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: m
-    type(edge_row_t), intent(in) :: bot, top
-    type(edge_col_t), intent(in) :: v
-    real(wp), intent(in) :: lc1(5)
-    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4), en(chunk)
-    real(wp), intent(out) :: ep(chunk, 4), s(chunk, 4)
-    include 'elastic_loop/iem_cell_elastic_locals.inc'
-
-    include 'elastic_loop/iem_cell_elastic_one_law.inc'
-    do c = 1, m
-      include 'elastic_loop/iem_cell_elastic_strains.inc'
-      include 'elastic_loop/iem_cell_elastic_law.inc'
-      include 'elastic_loop/iem_cell_elastic_energy.inc'
-      include 'elastic_loop/iem_cell_elastic_undamped.inc'
-      include 'elastic_loop/iem_cell_elastic_forces.inc'
-    end do
-  end subroutine chunk_elastic_plain_energy
-
-  !> chunk_elastic_lean for cells of one law (coefficients lc1) without damping.
-  pure subroutine chunk_elastic_plain_lean(k, m, bot, top, v, lc1, on, fx, fy, n_past)
-    type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: m
-    type(edge_row_t), intent(in) :: bot, top
-    type(edge_col_t), intent(in) :: v
-    real(wp), intent(in) :: lc1(5), on(3)
-    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
-    integer(i8), intent(out) :: n_past
-    include 'elastic_loop/iem_cell_elastic_locals.inc'
-    real(wp) :: on_t, on_c, on_s
-
-    include 'elastic_loop/iem_cell_elastic_one_law.inc'
-    on_t = on(1)
-    on_c = on(2)
-    on_s = on(3)
-    n_past = 0
-    do c = 1, m
-      include 'elastic_loop/iem_cell_elastic_strains.inc'
-      include 'elastic_loop/iem_cell_elastic_law.inc'
-      include 'elastic_loop/iem_cell_elastic_onsets.inc'
-      include 'elastic_loop/iem_cell_elastic_undamped.inc'
-      include 'elastic_loop/iem_cell_elastic_forces.inc'
-    end do
-  end subroutine chunk_elastic_plain_lean
-
-  !> chunk_elastic_forces with n_past, not 0 when a cell has a strain past the onsets on(3)
-  !> (tension: eps > on(1); crushing: -eps > on(2); shear: |s| > on(3)): for fracture's test
-  !> of an intact chunk (it counts, per cell, the criteria passed).
-  pure subroutine chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, on, fx, fy, n_past)
-    type(cell_constants_t), intent(in) :: k
-    integer, intent(in) :: m
-    type(edge_row_t), intent(in) :: bot, top
-    type(edge_col_t), intent(in) :: v
-    real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4), on(3)
-    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
-    integer(i8), intent(out) :: n_past
-    include 'elastic_loop/iem_cell_elastic_locals.inc'
-    real(wp) :: on_t, on_c, on_s
-
-    ilx = k%il0(1)
-    ily = k%il0(2)
-    on_t = on(1)
-    on_c = on(2)
-    on_s = on(3)
-    n_past = 0
-    do c = 1, m
-      include 'elastic_loop/iem_cell_elastic_cell_law.inc'
-      include 'elastic_loop/iem_cell_elastic_strains.inc'
-      include 'elastic_loop/iem_cell_elastic_law.inc'
-      include 'elastic_loop/iem_cell_elastic_onsets.inc'
-      include 'elastic_loop/iem_cell_elastic_damped.inc'
-      include 'elastic_loop/iem_cell_elastic_forces.inc'
-    end do
-  end subroutine chunk_elastic_lean
 
   !> The stiffness damping of a chunk's elastic cells (law coefficients lc): beta times the
   !> cell law of the strain and shear rates of the velocities bw, tw as edge stresses hd and

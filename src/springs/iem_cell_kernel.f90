@@ -13,10 +13,12 @@ module iem_cell_kernel
   use iem_spring_constants, only: cell_constants_t
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk
-  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_elastic, &
-                            chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_paper, &
-                            chunk_elastic_plain_energy, chunk_elastic_plain_lean, &
-                            chunk_elastic_lean, chunk_general, law_coefficients, damping_stresses
+  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_general, &
+                            law_coefficients, damping_stresses
+  use iem_cell_elastic, only: chunk_elastic, chunk_elastic_forces, chunk_elastic_plain, &
+                              chunk_elastic_paper, chunk_elastic_plain_energy, &
+                              chunk_elastic_plain_lean, chunk_elastic_paper_lean, &
+                              chunk_elastic_lean
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
   use iem_prefetch, only: prefetch
@@ -300,6 +302,8 @@ contains
           ! without energies: the onset test counted in the same loop
           if (damped .or. by_material) then
             call chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, onset, fx, fy, n_past)
+          else if (paper) then
+            call chunk_elastic_paper_lean(k, m, bot, top, v, lc1, onset, fx, fy, n_past)
           else
             call chunk_elastic_plain_lean(k, m, bot, top, v, lc1, onset, fx, fy, n_past)
           end if
