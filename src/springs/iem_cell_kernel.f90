@@ -289,11 +289,12 @@ contains
         else if (damped) then
           call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bw, tw, hd, ud, pw)
         end if
-        if (lean .and. .not. (present(fr) .or. damped .or. by_material) .and. paper) then
-          call chunk_elastic_paper(k, m, bot, top, v, lc1, fx, fy)
-          intact = .true.
-        else if (lean .and. .not. (present(fr) .or. damped .or. by_material)) then
-          call chunk_elastic_plain(k, m, bot, top, v, lc1, fx, fy)
+        if (lean .and. .not. (present(fr) .or. damped .or. by_material)) then
+          if (paper) then
+            call chunk_elastic_paper(k, m, bot, top, v, lc1, fx, fy)
+          else
+            call chunk_elastic_plain(k, m, bot, top, v, lc1, fx, fy)
+          end if
           intact = .true.
         else if (lean .and. .not. present(fr)) then
           call chunk_elastic_forces(k, m, bot, top, v, lc, hd, ud, fx, fy)
