@@ -2,7 +2,7 @@
 !> (element-by-element) bound, and the largest step for which every damped mode stays stable
 !> under RK4 or velocity Verlet.
 module iem_stable_dt
-  use iem_kinds, only: wp
+  use iem_kinds, only: wp, i8
   use iem_constants, only: rk4_imag_limit
   use iem_spring_constants, only: cell_constants_t
   use iem_cell_kernel, only: cell_force
@@ -198,15 +198,21 @@ contains
     end do
   end function capped_beta
 
-  !> Roots of the monic cubic x^3 + a2 x^2 + a1 x + a0 (Durand-Kerner iteration).
+  !> Roots of the monic cubic x^3 + a2 x^2 + a1 x + a0: those of 500 sweeps of the
+  !> Durand-Kerner iteration, found in fewer once the sweeps repeat bit for bit with period
+  !> 1 or 2 (the rest of the 500 would only repeat them).
   pure function cubic_roots(a2, a1, a0) result(x)
     real(wp), intent(in) :: a2, a1, a0
-    complex(wp) :: x(3), p, q
+    integer, parameter :: n_sweeps = 500
+    complex(wp) :: x(3), p, q, x1(3), x2(3)
     real(wp) :: radius
     integer :: it, i, j
     radius = 1.0_wp + max(abs(a2), abs(a1)**(1.0_wp/2.0_wp), abs(a0)**(1.0_wp/3.0_wp))
     x = radius*[(0.4_wp, 0.9_wp), (-0.7_wp, 0.3_wp), (0.2_wp, -0.8_wp)]
-    do it = 1, 500
+    ! x1, x2: the roots one and two sweeps before
+    x1 = x
+    x2 = x
+    do it = 1, n_sweeps
       do i = 1, 3
         p = ((x(i) + a2)*x(i) + a1)*x(i) + a0
         q = (1.0_wp, 0.0_wp)
@@ -215,7 +221,22 @@ contains
         end do
         if (abs(q) > 0.0_wp) x(i) = x(i) - p/q
       end do
+      ! (the same bits, a zero's sign too: a sweep is a function of the bits it starts from)
+      if (same_bits(x, x1)) exit
+      if (it > 1 .and. same_bits(x, x2)) then
+        ! period 2: sweep n_sweeps gives x when an even number of sweeps is left, else x1
+        if (mod(n_sweeps - it, 2) /= 0) x = x1
+        exit
+      end if
+      x2 = x1
+      x1 = x
     end do
+  contains
+    !> Whether a and b hold the same bits.
+    pure logical function same_bits(a, b)
+      complex(wp), intent(in) :: a(3), b(3)
+      same_bits = all(transfer(a, 0_i8, 6) == transfer(b, 0_i8, 6))
+    end function same_bits
   end function cubic_roots
 
   !> RK4 amplification factor R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24.
