@@ -10,7 +10,7 @@ repository root, after building both):
 
     python3 benchmarks/speed.py --iem build/iem --baseline "$(bash benchmarks/baseline.sh f17bd0c)"
     python3 benchmarks/speed.py --iem NEW --baseline OLD [--repeat 5] [--quick] [--weak]
-                                [--only force,rk4,verlet,memory,size,nonlinear,fracture,weak]
+                                [--only force,rk4,verlet,memory,size,nonlinear,damped,fracture,weak]
                                 [--save runs.json]
 
 The cases (1 rank unless said; `block N` is benchmarks/throughput.py's clamped 2:1 block of
@@ -39,6 +39,9 @@ of that time in each part, the peak resident memory VmHWM of every rank):
   2^20 bytes) between the blocks of 1e5 and 1e6 nodes on 1 rank, RK4 and Verlet;
 - size ratio = node-steps/s at 1e6 nodes / node-steps/s at 1e5 (RK4, Verlet);
 - nonlinear ratio = elastic node-steps/s / nonlinear node-steps/s, same scene and build;
+- damped (no target; the runs of the nonlinear ratio's elastic cantilever, mass-damped): its
+  node-steps/s, RK4 and Verlet, so that the damping's own costs, which the undamped blocks
+  never run, are seen as well;
 - fracture idle ratio = elastic node-steps/s / node-steps/s with fracture on (nothing failed);
 - weak scaling on 2 ranks = per-rank node-steps/s on 2 ranks with 2x the nodes / node-steps/s
   of the 1e5 block on 1 rank (optional, --weak: it needs 2 idle cores).
@@ -66,9 +69,9 @@ import iembench as ib  # noqa: E402
 import nonlinear_cost  # noqa: E402
 from throughput import block_case, run_nml  # noqa: E402
 
-MEASURES = ("force", "rk4", "verlet", "memory", "size", "nonlinear", "fracture", "weak")
+MEASURES = ("force", "rk4", "verlet", "memory", "size", "nonlinear", "damped", "fracture", "weak")
 DEFAULT = MEASURES[:-1]
-QUICK = ("force", "rk4", "verlet", "nonlinear", "fracture")
+QUICK = ("force", "rk4", "verlet", "nonlinear", "damped", "fracture")
 EVALS_PER_STEP = {"rk4": 4, "verlet": 1}
 
 
@@ -117,7 +120,7 @@ class Measure:
     cases: tuple[str, ...]
     figure: Callable[[Callable[[str], dict]], float]
     fmt: str
-    target: Target
+    target: Target | None
 
 
 ROWS = (
@@ -146,6 +149,10 @@ ROWS = (
             ("nl_verlet_elastic", "nl_verlet_nonlinear"),
             lambda g: step_rate(g("nl_verlet_elastic")) / step_rate(g("nl_verlet_nonlinear")),
             ".3f", Target("new", "<=", 2.0)),
+    Measure("damped", "RK4 node-steps/s, damped elastic cantilever (729 nodes)",
+            ("nl_rk4_elastic",), lambda g: step_rate(g("nl_rk4_elastic")), ".3e", None),
+    Measure("damped", "Verlet node-steps/s, damped elastic cantilever (729 nodes)",
+            ("nl_verlet_elastic",), lambda g: step_rate(g("nl_verlet_elastic")), ".3e", None),
     Measure("fracture", "RK4 fracture idle ratio: elastic / fracture-on rate",
             ("fr_rk4_elastic", "fr_rk4_fracture"),
             lambda g: step_rate(g("fr_rk4_elastic")) / step_rate(g("fr_rk4_fracture")), ".3f",
@@ -173,6 +180,9 @@ def table_row(m: Measure, old: list[float], new: list[float]) -> str:
     """The Markdown row of a measure from its per-repetition figures of each build."""
     ratios = [n / o for o, n in zip(old, new)]
     t = m.target
+    if t is None:
+        return (f"| {m.label} | {spread(old, m.fmt)} | {spread(new, m.fmt)} | "
+                f"{spread(ratios, '.3f')} | none | - |")
     if t.scope == "ratio":
         met = "yes" if t.met(statistics.median(ratios)) else "no"
     else:

@@ -58,6 +58,17 @@ def test_row_of_a_per_build_target_gives_both_verdicts():
     assert speed.table_row(m, [0.98] * 3, [0.96] * 3).endswith("| no (old: yes) |")
 
 
+def test_row_without_a_target_gives_no_verdict():
+    m = next(m for m in speed.ROWS if m.key == "damped")
+    assert m.target is None
+    row = speed.table_row(m, [1.0e7, 1.2e7, 0.8e7], [1.2e7, 1.2e7, 1.2e7])
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[3] == "1.200 [1.000, 1.500]"
+    assert cells[4:] == ["none", "-"]
+    runs = {"nl_rk4_elastic": report(rate=9.0e6, output=10.0)}
+    assert m.figure(runs.__getitem__) == pytest.approx(1.0e7)
+
+
 def test_figures_of_a_repetition_pair_its_runs():
     m = next(m for m in speed.ROWS if m.label.startswith("Verlet size"))
     runs = {"verlet_1e5": report(rate=4.0e7, output=0.0),
