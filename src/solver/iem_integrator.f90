@@ -13,7 +13,11 @@
 !> repartition); one that updates y in place (velocity Verlet) keeps the values that a
 !> non-finite update would overwrite, and rejected turns what is left into the last good
 !> state. Accepted states commit the springs' history. One polymorphic call a step: nothing is
-!> dispatched per node or cell.
+!> dispatched per node or cell. Before a step the driver says in next_plain whether nothing
+!> reads the state between that step and the next (no sample, frame, checkpoint or
+!> repartitioning; the next step follows): the step may then leave the state part way into
+!> the next one (velocity Verlet: the next step's first kick and drift), which rewind brings
+!> back should settle reject the step.
 module iem_integrator
   use mpi_f08, only: MPI_Comm
   use iem_kinds, only: wp
@@ -30,6 +34,12 @@ module iem_integrator
   type, abstract :: integrator_t
     !> The communicator over which a step's acceptance is agreed.
     type(MPI_Comm) :: comm
+    !> Set by the driver before each step: nothing reads the state of that step's end before
+    !> the next step (which follows).
+    logical :: next_plain = .false.
+    !> With next_plain: the time of that step's end as the driver numbers it (the next step's
+    !> t).
+    real(wp) :: t_next = 0.0_wp
   contains
     procedure :: init => integrator_init
     procedure(integrator_name_i), deferred :: name
@@ -41,6 +51,7 @@ module iem_integrator
     procedure(integrator_step_i), deferred :: step
     procedure(integrator_resume_i), deferred :: resume
     procedure :: settle => integrator_settle
+    procedure :: rewind => integrator_rewind
   end type integrator_t
 
   abstract interface
@@ -136,6 +147,18 @@ contains
     logical, intent(out) :: accepted
     accepted = .true.
   end subroutine integrator_settle
+
+  !> After settle rejected the last step (the step that ended at t), before rejected: bring a
+  !> state left part way into the next step (next_plain) back to that step's end (here: none
+  !> is left so).
+  subroutine integrator_rewind(this, model, lat, halo, st, t)
+    class(integrator_t), intent(inout) :: this
+    type(model_t), intent(inout) :: model
+    type(local_lattice_t), intent(in) :: lat
+    type(halo_t), intent(inout) :: halo
+    type(state_t), intent(inout) :: st
+    real(wp), intent(in) :: t
+  end subroutine integrator_rewind
 
   !> Set the communicator over which the integrator agrees on a step's acceptance.
   subroutine integrator_init(this, comm)

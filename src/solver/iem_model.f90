@@ -135,9 +135,13 @@ module iem_model
     !> sums it into stage%total. With kick (velocity Verlet), the guarded v += kick a follows in
     !> the pass (where the new velocities are not finite acc keeps the half-step ones), and
     !> first_bad is the first owned node where they are not (0: none; iem_node_pass's
-    !> kick_node); the prescribed dofs' rates are then left as the pass left them.
+    !> kick_node); the prescribed dofs' rates are then left as the pass left them. With kick
+    !> and drift (a state of 4 values a node, its forces summed into acc), the next step's
+    !> first kick and drift follow in the pass where the kick was finite, and acc is cleared
+    !> there for the next step's forces (iem_node_pass's accelerations_in_place; prescribed
+    !> dofs included: their values are the caller's to set).
     module subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit, record, stage, &
-                                 y0, ynew, ynext, kick, halo, vote, vote_all, first_bad)
+                                 y0, ynew, ynext, kick, halo, vote, vote_all, first_bad, drift)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       real(wp), intent(inout), contiguous :: y(:, :)
@@ -161,6 +165,8 @@ module iem_model
       type(MPI_Request), intent(inout), optional :: vote
       logical, intent(inout), optional, asynchronous :: vote_all
       integer, intent(out), optional :: first_bad
+      !> With kick: the next step's dt, its first kick and drift fused into the pass.
+      real(wp), intent(in), optional :: drift
     end subroutine model_rate
   end interface
 

@@ -153,7 +153,8 @@ contains
         end associate
       else
         if (this%sum_in_acc) then
-          call accelerations_in_place(lat%n_owned, this%alpha, this%mass, y, fs, kick, first_bad)
+          call accelerations_in_place(lat%n_owned, this%alpha, this%mass, y, fs, kick, first_bad, &
+                                      drift)
         else
           call accelerations(lat%n_owned, this%alpha, this%mass, y, fs, acc, kick, first_bad)
         end if
@@ -165,6 +166,9 @@ contains
       if (present(first_bad)) then
         if (first_bad /= 0) return
       end if
+      ! (with drift the pass has cleared acc for the next step's forces: the prescribed dofs'
+      ! rates are not used there, their values set by the caller)
+      if (present(drift)) return
       do n = 1, size(this%bc_node)
         b = this%bc_id(n)
         if (t >= this%bc_release(b)) cycle

@@ -62,6 +62,16 @@ module iem_node_pass
       real(c_double), intent(inout) :: y(*), fa(*)
       integer(c_int), intent(out) :: first_bad
     end subroutine c_kick
+    !> accelerations_in_place with kick and drift, where built.
+    pure subroutine c_kick_ahead(n, alpha, mass, h, dt, y, fa, first_bad) &
+        bind(c, name='iem_kick_ahead')
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), value :: alpha, h, dt
+      real(c_double), intent(in) :: mass(*)
+      real(c_double), intent(inout) :: y(*), fa(*)
+      integer(c_int), intent(out) :: first_bad
+    end subroutine c_kick_ahead
     !> kick_drift, where built.
     pure subroutine c_kick_drift(n, h, dt, acc, y, clear) &
         bind(c, name='iem_kick_drift')
@@ -129,20 +139,29 @@ contains
   !> As accelerations, the accelerations written over the forces they come from:
   !> fa(1:2, l) = -(fa + alpha m v)/m of the owned nodes 1..n (velocity Verlet with its forces
   !> summed into its rates array); with kick, then v += kick a, guarded as in accelerations
-  !> (fa keeps the velocities before the kick where the new ones are not both finite).
-  pure subroutine accelerations_in_place(n, alpha, mass, y, fa, kick, first_bad)
+  !> (fa keeps the velocities before the kick where the new ones are not both finite). With
+  !> kick and drift (4 values a node), at each node whose kicked velocities are both finite
+  !> the next step's first kick and drift follow in the same pass, v += kick a, u += drift v,
+  !> bit for bit kick_drift's, and fa is cleared there (for the next step's forces).
+  pure subroutine accelerations_in_place(n, alpha, mass, y, fa, kick, first_bad, drift)
     integer, intent(in) :: n
     real(wp), intent(in), contiguous :: mass(:)
     real(wp), intent(in) :: alpha
     real(wp), intent(inout), contiguous :: y(:, :), fa(:, :)
     real(wp), intent(in), optional :: kick
     integer, intent(out), optional :: first_bad
+    real(wp), intent(in), optional :: drift
     real(wp) :: a1, a2
     integer :: l, first
     integer(c_int) :: bad
     logical :: ok
+    if (present(drift) .and. size(y, 1) /= 4) error stop 'accelerations_in_place: drift, 4 values'
     if (present(kick) .and. node_pass_simd() .and. size(y, 1) == 4 .and. size(fa, 1) == 2) then
-      call c_kick(n, alpha, mass, kick, y, fa, bad)
+      if (present(drift)) then
+        call c_kick_ahead(n, alpha, mass, kick, drift, y, fa, bad)
+      else
+        call c_kick(n, alpha, mass, kick, y, fa, bad)
+      end if
       if (present(first_bad)) first_bad = bad
       return
     end if
@@ -162,7 +181,29 @@ contains
       first = min(first, merge(n + 1, l, ok))
     end do
     if (present(first_bad)) first_bad = merge(first, 0, first <= n)
+    if (present(drift)) call drift_ahead(n, kick, drift, y, fa)
   end subroutine accelerations_in_place
+
+  !> The next step's kick v += h a and drift u += dt v (kick_drift's loop) of the owned nodes
+  !> 1..n whose velocities (just kicked) are both finite, clearing fa there: the rest of
+  !> accelerations_in_place's pass with drift where the C pass is not built. (In the kick's
+  !> loop gfortran, tuned for this processor, left the second multiply-add of a velocity
+  !> uncontracted, a chain of two, and so rounded it otherwise than kick_drift.)
+  pure subroutine drift_ahead(n, h, dt, y, fa)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: h, dt
+    real(wp), intent(inout), contiguous :: y(:, :), fa(:, :)
+    integer :: l
+    do l = 1, n
+      if (.not. (y(3, l) - y(3, l)) + (y(4, l) - y(4, l)) == 0.0_wp) cycle
+      y(3, l) = y(3, l) + h*fa(1, l)
+      y(4, l) = y(4, l) + h*fa(2, l)
+      y(1, l) = y(1, l) + dt*y(3, l)
+      y(2, l) = y(2, l) + dt*y(4, l)
+      fa(1, l) = 0.0_wp
+      fa(2, l) = 0.0_wp
+    end do
+  end subroutine drift_ahead
 
   !> Velocity Verlet's second kick v += h a of the owned nodes 1..n (accelerations acc(1:2, :),
   !> velocities y(3:4, :)), guarded as the fused pass of accelerations: at a node whose new

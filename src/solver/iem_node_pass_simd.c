@@ -177,6 +177,60 @@ void iem_kick_in_place(int n, double alpha, const double *mass, double h, double
 #endif
 }
 
+/* accelerations_in_place with kick and drift: the kick of iem_kick_in_place and, at a node
+ * whose kicked velocities are both finite, the next step's first kick and drift in the same
+ * pass (v += h a, u += dt v, as iem_kick_drift) and the rates cleared there; elsewhere what
+ * the guarded kick alone leaves (u, the kicked v; the rates the velocities before it). */
+void iem_kick_ahead(int n, double alpha, const double *mass, double h, double dt, double *y,
+                    double *fa, int *first_bad) {
+#if IEM_SIMD
+  const __m256d h4 = _mm256_set1_pd(h), d4 = _mm256_set1_pd(dt), al = _mm256_set1_pd(alpha);
+  const __m256d zero = _mm256_setzero_pd(), sign = _mm256_set1_pd(-0.0);
+  int l = 0, first = 0;
+  for (; l + 1 < n; l += 2) {
+    __m256d s0 = _mm256_loadu_pd(y + 4 * l), s1 = _mm256_loadu_pd(y + 4 * l + 4);
+    __m256d m = _mm256_set_pd(mass[l + 1], mass[l + 1], mass[l], mass[l]);
+    __m256d u = _mm256_permute2f128_pd(s0, s1, 0x20);
+    __m256d w = _mm256_permute2f128_pd(s0, s1, 0x31);
+    __m256d a = _mm256_xor_pd(
+        _mm256_div_pd(_mm256_fmadd_pd(_mm256_mul_pd(al, m), w, _mm256_loadu_pd(fa + 2 * l)), m),
+        sign);
+    __m256d v = _mm256_fmadd_pd(h4, a, w);
+    __m256d fin = _mm256_cmp_pd(_mm256_sub_pd(v, v), zero, _CMP_EQ_OQ);
+    __m256d pair = _mm256_and_pd(fin, _mm256_permute_pd(fin, 0x5));
+    __m256d v2 = _mm256_fmadd_pd(h4, a, v);
+    __m256d u2 = _mm256_fmadd_pd(d4, v2, u);
+    v = _mm256_blendv_pd(v, v2, pair);
+    u = _mm256_blendv_pd(u, u2, pair);
+    _mm256_storeu_pd(fa + 2 * l, _mm256_andnot_pd(pair, w));
+    _mm256_storeu_pd(y + 4 * l, _mm256_permute2f128_pd(u, v, 0x20));
+    _mm256_storeu_pd(y + 4 * l + 4, _mm256_permute2f128_pd(u, v, 0x31));
+    int ok = _mm256_movemask_pd(pair);
+    if (ok != 0xF && first == 0) first = (ok & 0x3) != 0x3 ? l + 1 : l + 2;
+  }
+  for (; l < n; l++) {
+    double m = mass[l];
+    __m128d u = _mm_loadu_pd(y + 4 * l), w = _mm_loadu_pd(y + 4 * l + 2);
+    __m128d a = _mm_xor_pd(
+        _mm_div_pd(_mm_fmadd_pd(_mm_set1_pd(alpha * m), w, _mm_loadu_pd(fa + 2 * l)),
+                   _mm_set1_pd(m)),
+        _mm_set1_pd(-0.0));
+    __m128d v = _mm_fmadd_pd(_mm_set1_pd(h), a, w);
+    __m128d fin = _mm_cmp_pd(_mm_sub_pd(v, v), _mm_setzero_pd(), _CMP_EQ_OQ);
+    __m128d pair = _mm_and_pd(fin, _mm_permute_pd(fin, 0x1));
+    __m128d v2 = _mm_fmadd_pd(_mm_set1_pd(h), a, v);
+    __m128d u2 = _mm_fmadd_pd(_mm_set1_pd(dt), v2, u);
+    _mm_storeu_pd(fa + 2 * l, _mm_andnot_pd(pair, w));
+    _mm_storeu_pd(y + 4 * l, _mm_blendv_pd(u, u2, pair));
+    _mm_storeu_pd(y + 4 * l + 2, _mm_blendv_pd(v, v2, pair));
+    if (_mm_movemask_pd(pair) != 0x3 && first == 0) first = l + 1;
+  }
+  *first_bad = first;
+#else
+  (void)n; (void)alpha; (void)mass; (void)h; (void)dt; (void)y; (void)fa; (void)first_bad;
+#endif
+}
+
 /* Velocity Verlet's first kick and drift (kick_drift): v = v + h acc, then u = u + dt v;
  * with clear, acc zeroed. */
 void iem_kick_drift(int n, double h, double dt, double *acc, double *y, int clear) {

@@ -461,6 +461,8 @@ contains
       if (k == this%n_steps) exit
       this%model%energies_due = k + 1 == this%n_steps .or. &
                                 crossed(t, real(k + 1, wp)*this%dt, this%cfg%run%history_interval)
+      this%integ%t_next = real(k + 1, wp)*this%dt
+      this%integ%next_plain = quiet_step(this, k + 1, t, this%integ%t_next)
       call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
                            this%w_damp, accepted)
       if (.not. accepted) then
@@ -479,6 +481,23 @@ contains
                   ' s wall; final energy-balance error '//rtoa(this%last_balance))
     call report_performance(this, MPI_Wtime() - wall0)
   end subroutine run_dynamic
+
+  !> Whether nothing reads the state of step k (at t; the step before it at t_prev) before
+  !> step k + 1 starts from it: k is not the last step, and at k the loop of run_dynamic
+  !> takes no history sample, writes no frame, checks for no signal, writes no checkpoint and
+  !> does not repartition (the integrator may then leave the state part way into step k + 1).
+  logical function quiet_step(this, k, t_prev, t) result(quiet)
+    type(simulation_t), intent(in) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t_prev, t
+    quiet = k < this%n_steps .and. mod(k, int(this%cfg%run%check_interval, i8)) /= 0 .and. &
+            k /= int(this%cfg%run%repartition_step, i8)
+    if (.not. quiet) return
+    quiet = .not. (crossed(t_prev, t, this%cfg%run%history_interval) .or. &
+                   crossed(t_prev, t, this%cfg%run%output_interval))
+    if (quiet .and. this%cfg%run%checkpoint_interval > 0.0_wp) &
+      quiet = .not. crossed(t_prev, t, this%cfg%run%checkpoint_interval)
+  end function quiet_step
 
   !> Close the output (marking it complete when the run ended normally).
   subroutine simulation_finish(this, complete, stat, msg)

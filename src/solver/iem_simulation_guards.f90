@@ -24,6 +24,7 @@ contains
     integer :: back, first_bad, n
     character(len=:), allocatable :: note
     n = this%lat%n_owned
+    call this%integ%rewind(this%model, this%lat, this%halo, this%st, t)
     call this%integ%rejected(this%st, n, back, first_bad, note)
     call stop_nonfinite(this, k, t, first_bad, this%st%y(:, 1:n), k - back, &
                         t - back*this%dt, note, stat, msg)

@@ -2,7 +2,10 @@
 !> order, symplectic when undamped; damping forces use the half-step velocity. verlet_t puts
 !> it behind iem_integrator's interface: it updates the state in place, and a step whose new
 !> velocities are not finite somewhere is rejected on every rank, its last good state rebuilt
-!> from what the guarded kick left (no copy of the state is kept).
+!> from what the guarded kick left (no copy of the state is kept). When nothing reads the state
+!> between two steps (the driver's next_plain) the next step's first kick and drift run in the
+!> same pass over the nodes as this step's second kick (bit for bit the same values; one pass
+!> over the state a step instead of two).
 module iem_verlet
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Request, MPI_Iallreduce, MPI_Wait, MPI_STATUS_IGNORE, MPI_LOGICAL, &
@@ -34,6 +37,9 @@ module iem_verlet
     !> of the last kick (0: the rates of the start were evaluated, nothing was kicked).
     integer :: first_bad = 0
     real(wp) :: h = 0.0_wp
+    !> Whether the state is part way into the next step: the last step's pass also ran the
+    !> next step's first kick and drift (its rates then cleared where it did).
+    logical :: ahead = .false.
   contains
     procedure :: name => verlet_name
     procedure :: stable_dt => verlet_dt
@@ -44,6 +50,7 @@ module iem_verlet
     procedure :: prepare => verlet_prepare
     procedure :: step => verlet_accept_step
     procedure :: resume => verlet_resume
+    procedure :: rewind => verlet_rewind
   end type verlet_t
 
 contains
@@ -88,6 +95,7 @@ contains
     logical, intent(in) :: first
     integer :: l
     if (.not. first) return
+    this%ahead = .false.
     call state_rate(model, lat, halo, st, t)
     this%first_bad = 0
     do l = 1, lat%n_owned
@@ -111,11 +119,29 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     logical, intent(out) :: accepted
-    call verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%first_bad)
+    logical :: ahead
+    ahead = this%next_plain
+    if (ahead) ahead = can_run_ahead(model, st, t, this%t_next, dt)
+    call verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%first_bad, this%ahead, &
+                     ahead, this%t_next)
+    this%ahead = ahead
     this%h = 0.5_wp*dt
     call vote(this)
     accepted = .true.
   end subroutine verlet_accept_step
+
+  !> Whether a step from t whose end the driver numbers t_next may run the next step's first
+  !> kick and drift in its pass: a state of 4 values a node with the forces summed into the
+  !> rates (the fused passes), no stiffness damping (rewind finds the last good state from the
+  !> forces at rest), and no support released from t to one step past t_next (where the next
+  !> step's first kick would use the imposed acceleration).
+  logical function can_run_ahead(model, st, t, t_next, dt) result(ok)
+    type(model_t), intent(in) :: model
+    type(state_t), intent(in) :: st
+    real(wp), intent(in) :: t, t_next, dt
+    ok = size(st%y, 1) == 4 .and. model%sum_in_acc .and. model%beta == 0.0_wp
+    if (ok) ok = .not. any(model%bc_release > t .and. model%bc_release <= t_next + dt)
+  end function can_run_ahead
 
   !> Start the ranks' agreement on this rank's verdict (first_bad == 0); one still pending
   !> (a caller that did not settle) is completed first, and a rejection it brings stands.
@@ -173,6 +199,44 @@ contains
     this%h = 0.0_wp
   end subroutine verlet_rejected
 
+  !> After settle rejected the step that ended at t, when its pass ran ahead into the next
+  !> step: each node that pass moved on (finite velocities) back to the step's end, to the
+  !> round-off: u - dt v, and the half-step velocity w from v = w + 2 h a with a = a0 - alpha w,
+  !> a0 the accelerations of the forces at those displacements (one evaluation, at rest: no
+  !> stiffness damping runs ahead); its rates cleared, so that rejected keeps w. The other
+  !> nodes kept what the guarded kick left. The prescribed velocities: those of the half step.
+  subroutine verlet_rewind(this, model, lat, halo, st, t)
+    class(verlet_t), intent(inout) :: this
+    type(model_t), intent(inout) :: model
+    type(local_lattice_t), intent(in) :: lat
+    type(halo_t), intent(inout) :: halo
+    type(state_t), intent(inout) :: st
+    real(wp), intent(in) :: t
+    real(wp), allocatable :: ys(:, :), a0(:, :)
+    logical, allocatable :: moved(:)
+    real(wp) :: p_ext, p_damp, h
+    integer :: l, n
+    if (.not. this%ahead) return
+    this%ahead = .false.
+    n = lat%n_owned
+    h = this%h
+    allocate(moved(n), a0(size(st%acc, 1), size(st%acc, 2)))
+    do l = 1, n
+      moved(l) = ieee_is_finite(st%y(3, l)) .and. ieee_is_finite(st%y(4, l))
+      if (moved(l)) st%y(1:2, l) = st%y(1:2, l) - 2.0_wp*h*st%y(3:4, l)
+    end do
+    ys = st%y
+    ys(3:4, :) = 0.0_wp
+    a0 = 0.0_wp
+    call model%rate(lat, ys, t, a0, p_ext, p_damp, halo=halo)
+    do l = 1, n
+      if (.not. moved(l)) cycle
+      st%y(3:4, l) = (st%y(3:4, l) - 2.0_wp*h*a0(1:2, l))/(1.0_wp - 2.0_wp*h*model%alpha)
+      st%acc(:, l) = 0.0_wp
+    end do
+    call model%prescribe(st%y, t - h)
+  end subroutine verlet_rewind
+
   !> Verlet does not evaluate the rates at the step it starts from (they are in the
   !> checkpoint): one trial evaluation, into a scratch array and without commit, gives the
   !> model the strain energy of the loaded state.
@@ -198,8 +262,14 @@ contains
   !> Accumulates the local external work and damping dissipation of the step. The second
   !> kick is guarded (iem_node_pass's kick_node: where the new velocities are not finite the
   !> rates keep the half-step ones): first_bad is the first owned node where they are not (0:
-  !> none), and then the step's prescribed values are left as the kick left them.
-  subroutine verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, first_bad)
+  !> none), and then the step's prescribed values are left as the kick left them. With begun,
+  !> the previous call ran this step's first kick and drift (the state is at its drift, the
+  !> rates cleared). With ahead (4 values a node, forces summed into the rates; the next
+  !> step starts at t_next), this step's pass runs the next step's first kick and drift where
+  !> its kick was finite, with the next step's prescribed values, and clears the rates there:
+  !> the state is then the next call's with begun, bit for bit.
+  subroutine verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, first_bad, begun, ahead, &
+                         t_next)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
@@ -207,49 +277,56 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     integer, intent(out), optional :: first_bad
+    logical, intent(in), optional :: begun, ahead
+    real(wp), intent(in), optional :: t_next
     real(wp) :: p_ext, p_damp, h, c, u_bc(size(model%bc_node))
-    integer :: l, n, q, c2, bad
-    logical :: fuse
+    integer :: l, n, q, bad
+    logical :: fuse, start, next
 
     n = lat%n_owned
     h = 0.5_wp*dt
     fuse = size(st%y, 1) == 4
+    start = .true.
+    if (present(begun)) start = .not. begun
+    next = .false.
+    if (present(ahead)) next = ahead
+    if (next .and. .not. (fuse .and. model%sum_in_acc .and. present(t_next))) &
+      error stop 'verlet_step: ahead needs 4 values a node, the forces in the rates and t_next'
     call timer_start(t_update)
-    ! kick: v(t + dt/2); prescribed velocities take their mid-step values before the drift;
-    ! drift: u(t + dt)
-    if (fuse) then
-      ! one pass; the prescribed dofs are mended from their displacements before it
-      do q = 1, size(model%bc_node)
-        u_bc(q) = st%y(model%bc_comp(q), model%bc_node(q))
-      end do
-      call kick_drift(n, h, dt, st%acc, st%y, clear=model%sum_in_acc)
-      call model%prescribe(st%y, t + h)
-      do q = 1, size(model%bc_node)
-        l = model%bc_node(q)
-        c2 = model%bc_comp(q)
-        if (t + h >= model%bc_release(model%bc_id(q))) cycle
-        st%y(c2, l) = u_bc(q) + dt*st%y(2 + c2, l)
-      end do
-    else
-      do l = 1, n
-        st%y(3:4, l) = st%y(3:4, l) + h*st%acc(1:2, l)
-      end do
-      call model%prescribe(st%y, t + h)
-      do l = 1, n
-        st%y(1:2, l) = st%y(1:2, l) + dt*st%y(3:4, l)
-      end do
-    end if
-    if (model%omega_cap > 0.0_wp) then
-      c = 1.0_wp - exp(-model%omega_cap*dt)
-      do l = 1, n
-        st%y(5:6, l) = st%y(5:6, l) + c*(st%y(3:4, l) - st%y(5:6, l))
-      end do
+    if (start) then
+      ! kick: v(t + dt/2); prescribed velocities take their mid-step values before the drift;
+      ! drift: u(t + dt)
+      if (fuse) then
+        ! one pass; the prescribed dofs are mended from their displacements before it
+        call keep_prescribed(model, st%y, u_bc)
+        call kick_drift(n, h, dt, st%acc, st%y, clear=model%sum_in_acc)
+        call mend_prescribed(model, st%y, u_bc, t, dt)
+      else
+        do l = 1, n
+          st%y(3:4, l) = st%y(3:4, l) + h*st%acc(1:2, l)
+        end do
+        call model%prescribe(st%y, t + h)
+        do l = 1, n
+          st%y(1:2, l) = st%y(1:2, l) + dt*st%y(3:4, l)
+        end do
+      end if
+      if (model%omega_cap > 0.0_wp) then
+        c = 1.0_wp - exp(-model%omega_cap*dt)
+        do l = 1, n
+          st%y(5:6, l) = st%y(5:6, l) + c*(st%y(3:4, l) - st%y(5:6, l))
+        end do
+      end if
     end if
     call timer_stop(t_update)
     call timer_start(t_force)
     ! the end of the step is accepted: nonlinear springs commit their history to it; with 4
     ! values a node the kick v(t + dt) is fused into the evaluation's pass over the nodes
-    if (fuse) then
+    if (next) then
+      ! (the next step's first part: the prescribed dofs mended from their displacements here)
+      call keep_prescribed(model, st%y, u_bc)
+      call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., kick=h, &
+                      halo=halo, first_bad=bad, drift=dt)
+    else if (fuse) then
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., kick=h, &
                       halo=halo, first_bad=bad)
     else
@@ -265,7 +342,42 @@ contains
     if (.not. fuse) call guarded_kick(n, h, st%acc, st%y, bad)
     if (present(first_bad)) first_bad = bad
     ! (a rejected step keeps what the guarded kick left, for rejected)
-    if (bad == 0) call model%prescribe(st%y, t + dt)
+    if (bad == 0) then
+      if (next) then
+        call mend_prescribed(model, st%y, u_bc, t_next, dt)
+      else
+        call model%prescribe(st%y, t + dt)
+      end if
+    end if
     call timer_stop(t_update)
   end subroutine verlet_step
+
+  !> The displacements u_bc of the prescribed dofs (before a kick and drift moves them).
+  pure subroutine keep_prescribed(model, y, u_bc)
+    type(model_t), intent(in) :: model
+    real(wp), intent(in) :: y(:, :)
+    real(wp), intent(out) :: u_bc(:)
+    integer :: q
+    do q = 1, size(model%bc_node)
+      u_bc(q) = y(model%bc_comp(q), model%bc_node(q))
+    end do
+  end subroutine keep_prescribed
+
+  !> After the kick and drift of a step from t (of dt): the prescribed velocities at the half
+  !> step, and the prescribed displacements u_bc + dt v of the dofs not yet released then.
+  subroutine mend_prescribed(model, y, u_bc, t, dt)
+    type(model_t), intent(in) :: model
+    real(wp), intent(inout) :: y(:, :)
+    real(wp), intent(in) :: u_bc(:), t, dt
+    real(wp) :: h
+    integer :: q, l, c2
+    h = 0.5_wp*dt
+    call model%prescribe(y, t + h)
+    do q = 1, size(model%bc_node)
+      l = model%bc_node(q)
+      c2 = model%bc_comp(q)
+      if (t + h >= model%bc_release(model%bc_id(q))) cycle
+      y(c2, l) = u_bc(q) + dt*y(2 + c2, l)
+    end do
+  end subroutine mend_prescribed
 end module iem_verlet
