@@ -130,6 +130,44 @@ void iem_rk4_last_pass(int n, double alpha, const double *mass, double wdt, cons
 #endif
 }
 
+#if IEM_SIMD
+/* The guarded half kick of two nodes l, l+1 (states s0, s1; rates at fa = fa + 2 l): their
+ * half-step velocities w, accelerations a = -fma(alpha m, w, f)/m, kicked velocities
+ * v = fma(h, a, w), and pair, all bits set in both lanes of a node whose two new velocities
+ * are finite. */
+static inline void kick2(__m256d s0, __m256d s1, const double *mp, const double *fa,
+                         __m256d al, __m256d h4, __m256d *w, __m256d *a, __m256d *v,
+                         __m256d *pair) {
+  const __m256d sign = _mm256_set1_pd(-0.0);
+  __m256d m = _mm256_set_pd(mp[1], mp[1], mp[0], mp[0]);
+  *w = _mm256_permute2f128_pd(s0, s1, 0x31);
+  *a = _mm256_xor_pd(_mm256_div_pd(_mm256_fmadd_pd(_mm256_mul_pd(al, m), *w,
+                                                   _mm256_loadu_pd(fa)), m), sign);
+  *v = _mm256_fmadd_pd(h4, *a, *w);
+  /* v - v is 0 for a finite v, NaN otherwise: both of a node finite or neither kept */
+  __m256d fin = _mm256_cmp_pd(_mm256_sub_pd(*v, *v), _mm256_setzero_pd(), _CMP_EQ_OQ);
+  *pair = _mm256_and_pd(fin, _mm256_permute_pd(fin, 0x5));
+}
+
+/* kick2 for one node l (velocities w from y + 4 l + 2, rates at fa = fa + 2 l). */
+static inline void kick1(const double *yl, double m, const double *fa, double alpha, double h,
+                         __m128d *w, __m128d *a, __m128d *v, __m128d *pair) {
+  *w = _mm_loadu_pd(yl + 2);
+  *a = _mm_xor_pd(_mm_div_pd(_mm_fmadd_pd(_mm_set1_pd(alpha * m), *w, _mm_loadu_pd(fa)),
+                             _mm_set1_pd(m)), _mm_set1_pd(-0.0));
+  *v = _mm_fmadd_pd(_mm_set1_pd(h), *a, *w);
+  __m128d fin = _mm_cmp_pd(_mm_sub_pd(*v, *v), _mm_setzero_pd(), _CMP_EQ_OQ);
+  *pair = _mm_and_pd(fin, _mm_permute_pd(fin, 0x1));
+}
+
+/* The first bad node of a pair l, l+1 from pair's mask (first: 0 until one is found). */
+static inline int first_of2(int first, int l, __m256d pair) {
+  int ok = _mm256_movemask_pd(pair);
+  if (ok != 0xF && first == 0) first = (ok & 0x3) != 0x3 ? l + 1 : l + 2;
+  return first;
+}
+#endif
+
 /* Velocity Verlet's accelerations in place with the guarded kick (accelerations_in_place
  * with kick): a = -fma(alpha m, v, fa)/m, v_new = v + h a; fa = a where both new velocities
  * are finite, else the velocities before the kick; *first_bad: the first node (from 1) where
@@ -137,36 +175,20 @@ void iem_rk4_last_pass(int n, double alpha, const double *mass, double wdt, cons
 void iem_kick_in_place(int n, double alpha, const double *mass, double h, double *y, double *fa,
                       int *first_bad) {
 #if IEM_SIMD
-  const __m256d h4 = _mm256_set1_pd(h), al = _mm256_set1_pd(alpha), zero = _mm256_setzero_pd();
-  const __m256d sign = _mm256_set1_pd(-0.0);
+  const __m256d h4 = _mm256_set1_pd(h), al = _mm256_set1_pd(alpha);
   int l = 0, first = 0;
   for (; l + 1 < n; l += 2) {
     __m256d s0 = _mm256_loadu_pd(y + 4 * l), s1 = _mm256_loadu_pd(y + 4 * l + 4);
-    __m256d m = _mm256_set_pd(mass[l + 1], mass[l + 1], mass[l], mass[l]);
-    __m256d w = _mm256_permute2f128_pd(s0, s1, 0x31);
-    __m256d a = _mm256_xor_pd(
-        _mm256_div_pd(_mm256_fmadd_pd(_mm256_mul_pd(al, m), w, _mm256_loadu_pd(fa + 2 * l)), m),
-        sign);
-    __m256d v = _mm256_fmadd_pd(h4, a, w);
-    /* v - v is 0 for a finite v, NaN otherwise: both of a node finite or neither kept */
-    __m256d fin = _mm256_cmp_pd(_mm256_sub_pd(v, v), zero, _CMP_EQ_OQ);
-    __m256d pair = _mm256_and_pd(fin, _mm256_permute_pd(fin, 0x5));
+    __m256d w, a, v, pair;
+    kick2(s0, s1, mass + l, fa + 2 * l, al, h4, &w, &a, &v, &pair);
     _mm256_storeu_pd(fa + 2 * l, _mm256_blendv_pd(w, a, pair));
     _mm256_storeu_pd(y + 4 * l, _mm256_permute2f128_pd(s0, v, 0x20));
     _mm256_storeu_pd(y + 4 * l + 4, _mm256_permute2f128_pd(s1, v, 0x30));
-    int ok = _mm256_movemask_pd(pair);
-    if (ok != 0xF && first == 0) first = (ok & 0x3) != 0x3 ? l + 1 : l + 2;
+    first = first_of2(first, l, pair);
   }
   for (; l < n; l++) {
-    double m = mass[l];
-    __m128d w = _mm_loadu_pd(y + 4 * l + 2);
-    __m128d a = _mm_xor_pd(
-        _mm_div_pd(_mm_fmadd_pd(_mm_set1_pd(alpha * m), w, _mm_loadu_pd(fa + 2 * l)),
-                   _mm_set1_pd(m)),
-        _mm_set1_pd(-0.0));
-    __m128d v = _mm_fmadd_pd(_mm_set1_pd(h), a, w);
-    __m128d fin = _mm_cmp_pd(_mm_sub_pd(v, v), _mm_setzero_pd(), _CMP_EQ_OQ);
-    __m128d pair = _mm_and_pd(fin, _mm_permute_pd(fin, 0x1));
+    __m128d w, a, v, pair;
+    kick1(y + 4 * l, mass[l], fa + 2 * l, alpha, h, &w, &a, &v, &pair);
     _mm_storeu_pd(fa + 2 * l, _mm_blendv_pd(w, a, pair));
     _mm_storeu_pd(y + 4 * l + 2, v);
     if (_mm_movemask_pd(pair) != 0x3 && first == 0) first = l + 1;
@@ -185,19 +207,11 @@ void iem_kick_ahead(int n, double alpha, const double *mass, double h, double dt
                     double *fa, int *first_bad) {
 #if IEM_SIMD
   const __m256d h4 = _mm256_set1_pd(h), d4 = _mm256_set1_pd(dt), al = _mm256_set1_pd(alpha);
-  const __m256d zero = _mm256_setzero_pd(), sign = _mm256_set1_pd(-0.0);
   int l = 0, first = 0;
   for (; l + 1 < n; l += 2) {
     __m256d s0 = _mm256_loadu_pd(y + 4 * l), s1 = _mm256_loadu_pd(y + 4 * l + 4);
-    __m256d m = _mm256_set_pd(mass[l + 1], mass[l + 1], mass[l], mass[l]);
-    __m256d u = _mm256_permute2f128_pd(s0, s1, 0x20);
-    __m256d w = _mm256_permute2f128_pd(s0, s1, 0x31);
-    __m256d a = _mm256_xor_pd(
-        _mm256_div_pd(_mm256_fmadd_pd(_mm256_mul_pd(al, m), w, _mm256_loadu_pd(fa + 2 * l)), m),
-        sign);
-    __m256d v = _mm256_fmadd_pd(h4, a, w);
-    __m256d fin = _mm256_cmp_pd(_mm256_sub_pd(v, v), zero, _CMP_EQ_OQ);
-    __m256d pair = _mm256_and_pd(fin, _mm256_permute_pd(fin, 0x5));
+    __m256d u = _mm256_permute2f128_pd(s0, s1, 0x20), w, a, v, pair;
+    kick2(s0, s1, mass + l, fa + 2 * l, al, h4, &w, &a, &v, &pair);
     __m256d v2 = _mm256_fmadd_pd(h4, a, v);
     __m256d u2 = _mm256_fmadd_pd(d4, v2, u);
     v = _mm256_blendv_pd(v, v2, pair);
@@ -205,19 +219,11 @@ void iem_kick_ahead(int n, double alpha, const double *mass, double h, double dt
     _mm256_storeu_pd(fa + 2 * l, _mm256_andnot_pd(pair, w));
     _mm256_storeu_pd(y + 4 * l, _mm256_permute2f128_pd(u, v, 0x20));
     _mm256_storeu_pd(y + 4 * l + 4, _mm256_permute2f128_pd(u, v, 0x31));
-    int ok = _mm256_movemask_pd(pair);
-    if (ok != 0xF && first == 0) first = (ok & 0x3) != 0x3 ? l + 1 : l + 2;
+    first = first_of2(first, l, pair);
   }
   for (; l < n; l++) {
-    double m = mass[l];
-    __m128d u = _mm_loadu_pd(y + 4 * l), w = _mm_loadu_pd(y + 4 * l + 2);
-    __m128d a = _mm_xor_pd(
-        _mm_div_pd(_mm_fmadd_pd(_mm_set1_pd(alpha * m), w, _mm_loadu_pd(fa + 2 * l)),
-                   _mm_set1_pd(m)),
-        _mm_set1_pd(-0.0));
-    __m128d v = _mm_fmadd_pd(_mm_set1_pd(h), a, w);
-    __m128d fin = _mm_cmp_pd(_mm_sub_pd(v, v), _mm_setzero_pd(), _CMP_EQ_OQ);
-    __m128d pair = _mm_and_pd(fin, _mm_permute_pd(fin, 0x1));
+    __m128d u = _mm_loadu_pd(y + 4 * l), w, a, v, pair;
+    kick1(y + 4 * l, mass[l], fa + 2 * l, alpha, h, &w, &a, &v, &pair);
     __m128d v2 = _mm_fmadd_pd(_mm_set1_pd(h), a, v);
     __m128d u2 = _mm_fmadd_pd(_mm_set1_pd(dt), v2, u);
     _mm_storeu_pd(fa + 2 * l, _mm_andnot_pd(pair, w));
