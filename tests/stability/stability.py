@@ -222,13 +222,19 @@ def cmd_dt_limit(args) -> None:
     # Debug build traps the overflow first (-ffpe-trap): then only a non-zero exit is asked.
     cache = Path(args.iem).resolve().parent / "CMakeCache.txt"
     traps = cache.exists() and "CMAKE_BUILD_TYPE:STRING=Debug" in cache.read_text()
-    for integ in ("rk4", "verlet"):
+    # (verlet_ahead: the signal checks every 7 steps instead of 10, so that the step before
+    # the rejected one ran ahead into it and is taken back; its last frame must be the plain
+    # run's to the round-off)
+    last = {}
+    for case in ("rk4", "verlet", "verlet_ahead"):
+        integ = case.split("_")[0]
         lim = limit if integ == "rk4" else limit / math.sqrt(2.0)
-        p, out = run_scene(args, f"dt_nan_{integ}",
+        p, out = run_scene(args, f"dt_nan_{case}",
                            f"t_end = 1.0e-2, dt = {1.5 * lim:.9e}, allow_unstable_dt = .true., "
                            f"integrator = '{integ}', history_interval = 1.0e-2, "
-                           f"output_interval = 1.0e-2", CLAMP_TIP.format(tf=""),
-                           expect_ok=False, **small)
+                           f"output_interval = 1.0e-2"
+                           f"{', check_interval = 7' if case == 'verlet_ahead' else ''}",
+                           CLAMP_TIP.format(tf=""), expect_ok=False, **small)
         if traps:
             rg.check(p.returncode != 0, f"{integ}, dt = 1.5 x limit (Debug build): stopped, "
                                         f"exit {p.returncode}")
@@ -241,12 +247,18 @@ def cmd_dt_limit(args) -> None:
             with h5py.File(out, "r") as f:
                 frames = sorted(k for k in f["frames"] if k.startswith("frame_"))
                 last_step = int(f[f"frames/{frames[-1]}"].attrs["step"])
-                finite = bool(np.all(np.isfinite(f[f"frames/{frames[-1]}/displacement"][:])) and
-                              np.all(np.isfinite(f[f"frames/{frames[-1]}/velocity"][:])))
+                last[case] = [f[f"frames/{frames[-1]}/{d}"][:] for d in ("displacement", "velocity")]
+                finite = bool(np.all(np.isfinite(last[case][0])) and
+                              np.all(np.isfinite(last[case][1])))
         rg.check(ok and finite and last_step == (step - 1 if integ == "rk4" else step),
-                 f"{integ}, dt = 1.5 x limit: stopped by the NaN guard at step {step}; last "
+                 f"{case}, dt = 1.5 x limit: stopped by the NaN guard at step {step}; last "
                  f"frame finite, of step {last_step} (the last good state)")
-        result(f"dt 1.5 limit {integ} NaN guard step", step)
+        result(f"dt 1.5 limit {case} NaN guard step", step)
+    if "verlet" in last and "verlet_ahead" in last:
+        diff = max(float(np.abs(a - b).max() / max(np.abs(a).max(), 1e-300))
+                   for a, b in zip(last["verlet"], last["verlet_ahead"]))
+        rg.check(diff <= 1e-12, f"verlet, the step before the rejected one run ahead and taken "
+                                f"back: last frame within {diff:.1e} (<= 1e-12) of the plain run's")
 
 
 def cmd_shock(args) -> None:
