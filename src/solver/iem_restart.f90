@@ -201,12 +201,23 @@ contains
   end procedure load_checkpoint
 
   !> Documented at its interface in iem_simulation.f90.
+  module procedure checkpoint_looks
+    looks = mod(k, int(this%cfg%run%check_interval, i8)) == 0
+    ! (no short-circuit in Fortran: test the interval before dividing by it)
+    if (this%cfg%run%checkpoint_interval > 0.0_wp) then
+      if (crossed(t_prev, t, this%cfg%run%checkpoint_interval)) looks = .true.
+    end if
+  end procedure checkpoint_looks
+
+  !> Documented at its interface in iem_simulation.f90.
   module procedure checkpoint_if_due
     integer :: sig
     logical :: due, ok
     stat = 0
     msg = ''
     sig = 0
+    ! (the same condition tells the driver which steps' states it may leave part way on)
+    if (.not. checkpoint_looks(this, k, t_prev, t)) return
     if (mod(k, int(this%cfg%run%check_interval, i8)) == 0) then
       sig = signal_caught()
       call MPI_Allreduce(MPI_IN_PLACE, sig, 1, MPI_INTEGER, MPI_MAX, this%comm)

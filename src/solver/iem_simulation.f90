@@ -137,6 +137,14 @@ module iem_simulation
       character(len=:), allocatable, intent(out) :: msg
     end subroutine load_checkpoint
 
+    !> Whether checkpoint_if_due at step k (at t; the step before it at t_prev) looks at the
+    !> state: it checks for a signal there, or a checkpoint interval ends there.
+    module pure logical function checkpoint_looks(this, k, t_prev, t) result(looks)
+      type(simulation_t), intent(in) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t_prev, t
+    end function checkpoint_looks
+
     !> At the top of step k > the first: write a checkpoint when one is due (its interval of
     !> simulated time since t_prev, or a signal, polled every check_interval steps); after a
     !> signal stop with stat = 4. Collective.
@@ -427,8 +435,7 @@ contains
         end if
       end if
       ! a history sample at this step; the cells' energies only for the states one reads
-      sampled = k == 0 .or. k == this%n_steps .or. &
-                crossed(t_prev, t, this%cfg%run%history_interval)
+      sampled = sample_due(this, k, t_prev, t)
       this%model%energies_due = sampled
       call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, this%dt, k == 0)
       ! the last step stands once every rank agrees (RK4 agrees behind prepare's exchange)
@@ -446,8 +453,7 @@ contains
         call energy_guard(this, k, t, stat, msg)
         if (stat /= 0) return
       end if
-      if (k == 0 .or. k == this%n_steps .or. &
-          crossed(t_prev, t, this%cfg%run%output_interval)) then
+      if (frame_due(this, k, t_prev, t)) then
         call timer_start(t_output)
         call flush_history(this, stat)
         if (stat == 0) call write_frame(this, k, t, stat)
@@ -459,9 +465,8 @@ contains
       end if
       if (this%rank == 0) call progress(this, k, t, wall0, wall_last, next_report)
       if (k == this%n_steps) exit
-      this%model%energies_due = k + 1 == this%n_steps .or. &
-                                crossed(t, real(k + 1, wp)*this%dt, this%cfg%run%history_interval)
       this%integ%t_next = real(k + 1, wp)*this%dt
+      this%model%energies_due = sample_due(this, k + 1, t, this%integ%t_next)
       this%integ%next_plain = quiet_step(this, k + 1, t, this%integ%t_next)
       call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
                            this%w_damp, accepted)
@@ -482,21 +487,35 @@ contains
     call report_performance(this, MPI_Wtime() - wall0)
   end subroutine run_dynamic
 
-  !> Whether nothing reads the state of step k (at t; the step before it at t_prev) before
-  !> step k + 1 starts from it: k is not the last step, and at k the loop of run_dynamic
-  !> takes no history sample, writes no frame, checks for no signal, writes no checkpoint and
-  !> does not repartition (the integrator may then leave the state part way into step k + 1).
-  logical function quiet_step(this, k, t_prev, t) result(quiet)
+  !> Whether step k (at t; the step before it at t_prev) takes a history sample.
+  pure logical function sample_due(this, k, t_prev, t)
     type(simulation_t), intent(in) :: this
     integer(i8), intent(in) :: k
     real(wp), intent(in) :: t_prev, t
-    quiet = k < this%n_steps .and. mod(k, int(this%cfg%run%check_interval, i8)) /= 0 .and. &
-            k /= int(this%cfg%run%repartition_step, i8)
-    if (.not. quiet) return
-    quiet = .not. (crossed(t_prev, t, this%cfg%run%history_interval) .or. &
-                   crossed(t_prev, t, this%cfg%run%output_interval))
-    if (quiet .and. this%cfg%run%checkpoint_interval > 0.0_wp) &
-      quiet = .not. crossed(t_prev, t, this%cfg%run%checkpoint_interval)
+    sample_due = k == 0 .or. k == this%n_steps .or. &
+                 crossed(t_prev, t, this%cfg%run%history_interval)
+  end function sample_due
+
+  !> Whether step k (at t; the step before it at t_prev) writes a frame.
+  pure logical function frame_due(this, k, t_prev, t)
+    type(simulation_t), intent(in) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t_prev, t
+    frame_due = k == 0 .or. k == this%n_steps .or. &
+                crossed(t_prev, t, this%cfg%run%output_interval)
+  end function frame_due
+
+  !> Whether nothing reads the state of step k (at t; the step before it at t_prev) before
+  !> step k + 1 starts from it: k is not the last step, and at k the loop of run_dynamic
+  !> takes no history sample, writes no frame, does not look for a checkpoint and does not
+  !> repartition (the integrator may then leave the state part way into step k + 1).
+  pure logical function quiet_step(this, k, t_prev, t) result(quiet)
+    type(simulation_t), intent(in) :: this
+    integer(i8), intent(in) :: k
+    real(wp), intent(in) :: t_prev, t
+    quiet = k < this%n_steps .and. k /= int(this%cfg%run%repartition_step, i8)
+    if (quiet) quiet = .not. (sample_due(this, k, t_prev, t) .or. frame_due(this, k, t_prev, t) &
+                              .or. checkpoint_looks(this, k, t_prev, t))
   end function quiet_step
 
   !> Close the output (marking it complete when the run ended normally).
