@@ -148,13 +148,30 @@ contains
     end if
   end function cell_table_corners_of
 
-  !> Corner k (1..4, counter-clockwise from the lower left) of cell c.
+  !> Corner k (1..4, counter-clockwise from the lower left) of cell c (0 when the table does
+  !> not hold it): corners_of(c)'s k-th, without forming the other three.
   pure integer function cell_table_corner(this, k, c) result(n)
     class(cell_table_t), intent(in) :: this
     integer, intent(in) :: k, c
-    integer :: q(4)
-    q = this%corners_of(c)
-    n = q(k)
+    integer :: j, i
+    n = 0
+    j = this%chunk_at(c)
+    if (j == 0) return
+    i = c - this%chunks(1, j)
+    if (this%chunks(3, j) == 1) then
+      select case (k)
+      case (1)
+        n = this%chunks(4, j) + i
+      case (2)
+        n = this%chunks(4, j) + i + 1
+      case (3)
+        n = this%chunks(5, j) + i + 1
+      case default
+        n = this%chunks(5, j) + i
+      end select
+    else
+      n = this%corners(k, this%chunks(6, j) + i)
+    end if
   end function cell_table_corner
 
   !> The corners q(:, 1:m) of the m cells of chunk j.

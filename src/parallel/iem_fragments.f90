@@ -93,17 +93,19 @@ contains
     type(local_lattice_t), intent(in) :: lat
     type(fracture_t), intent(in) :: fr
     integer, intent(out) :: n_comp
-    integer :: c, q, l, r, k
+    integer :: c, q, l, r, k, qc(4)
     do l = 1, lat%n_local
       this%parent(l) = l
     end do
     do c = 1, lat%n_cells
+      ! the cell's corners looked up once (each lookup finds the cell's chunk)
+      qc = lat%corners(c)
       do q = 1, 4
         ! an undamaged cell's edges are all intact
         if (fr%hit(c)) then
           if (edge_factor(fr%laws(lat%mat(c)), fr%kappa(:, c), q) <= 0.0_wp) cycle
         end if
-        call join(lat%cell_nodes(q, c), lat%cell_nodes(mod(q, 4) + 1, c))
+        call join(qc(q), qc(mod(q, 4) + 1))
       end do
     end do
     ! number the components by their roots

@@ -70,14 +70,16 @@ contains
     integer(ip), allocatable, intent(out) :: comp(:)
     integer(i8), allocatable, intent(out) :: label(:)
     integer(ip), allocatable :: parent(:)
-    integer :: c, q, l, n, r, k
+    integer :: c, q, l, n, r, k, qc(4)
     allocate(parent(lat%n_local), comp(lat%n_local))
     do l = 1, lat%n_local
       parent(l) = l
     end do
     do c = 1, lat%n_cells
+      ! the cell's corners looked up once (each lookup finds the cell's chunk)
+      qc = lat%corners(c)
       do q = 2, 4
-        call join(lat%cell_nodes(1, c), lat%cell_nodes(q, c))
+        call join(qc(1), qc(q))
       end do
     end do
     ! number the components by their roots; a node of no cell keeps a label of its own
