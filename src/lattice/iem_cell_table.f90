@@ -135,29 +135,32 @@ contains
   pure function cell_table_corners_of(this, c) result(q)
     class(cell_table_t), intent(in) :: this
     integer, intent(in) :: c
-    integer :: q(4), j, i
+    integer :: q(4), j, k
     q = 0
     j = this%chunk_at(c)
     if (j == 0) return
-    i = c - this%chunks(1, j)
-    if (this%chunks(3, j) == 1) then
-      q = [this%chunks(4, j) + i, this%chunks(4, j) + i + 1, this%chunks(5, j) + i + 1, &
-           this%chunks(5, j) + i]
-    else
-      q = this%corners(:, this%chunks(6, j) + i)
-    end if
+    do k = 1, 4
+      q(k) = chunk_corner(this, j, c - this%chunks(1, j), k)
+    end do
   end function cell_table_corners_of
 
   !> Corner k (1..4, counter-clockwise from the lower left) of cell c (0 when the table does
-  !> not hold it): corners_of(c)'s k-th, without forming the other three.
+  !> not hold it), without forming the other three.
   pure integer function cell_table_corner(this, k, c) result(n)
     class(cell_table_t), intent(in) :: this
     integer, intent(in) :: k, c
-    integer :: j, i
+    integer :: j
     n = 0
     j = this%chunk_at(c)
     if (j == 0) return
-    i = c - this%chunks(1, j)
+    n = chunk_corner(this, j, c - this%chunks(1, j), k)
+  end function cell_table_corner
+
+  !> Corner k of the cell after the first i cells of chunk j: from the chunk's first bottom
+  !> and top nodes when its node rows are numbered consecutively, else from its list.
+  pure integer function chunk_corner(this, j, i, k) result(n)
+    type(cell_table_t), intent(in) :: this
+    integer, intent(in) :: j, i, k
     if (this%chunks(3, j) == 1) then
       select case (k)
       case (1)
@@ -172,7 +175,7 @@ contains
     else
       n = this%corners(k, this%chunks(6, j) + i)
     end if
-  end function cell_table_corner
+  end function chunk_corner
 
   !> The corners q(:, 1:m) of the m cells of chunk j.
   pure subroutine cell_table_chunk_corners(this, j, q, m)
