@@ -10,9 +10,10 @@ module iem_model
   use iem_cell_table, only: max_chunk
   use iem_node_sets, only: select_nodes
   use iem_spring_constants, only: cell_constants_t, cell_constants
-  use iem_cell_kernel, only: cell_forces, kernel_rows
+  use iem_cell_kernel, only: cell_forces, kernel_rows, kernel_slots_t
   use iem_cell_chunk, only: edge_row_t
   use iem_cell_split, only: cell_split_t
+  use iem_cell_bands, only: cell_bands_t
   use iem_halo, only: halo_t
   use iem_node_pass, only: rk4_stage_t, accelerations, rk4_first_pass, rk4_mid_pass, &
                            rk4_last_pass
@@ -77,8 +78,19 @@ module iem_model
     !> The interior and boundary chunks, for evaluations that overlap the halo exchange (the
     !> evaluations without it walk the lattice's own chunks, lat%cells).
     type(cell_split_t) :: split
+    !> The bands of the lattice's chunks for an RK4 stage's evaluation on a rank without halo
+    !> nodes: the stage's pass over the nodes follows the cells band by band (docs/
+    !> architecture.md, "The node pass band by band").
+    type(cell_bands_t) :: bands
+    !> The prescribed dofs in the order of their nodes (stable): bc_by_node(j) is an entry of
+    !> bc_node.
+    integer, allocatable :: bc_by_node(:)
+    !> Whether each prescribed dof's reaction power entered p_ext at the last evaluation.
+    logical, allocatable :: pr_on(:)
     !> The force kernel's work space (its node rows, about 200 kB).
     type(edge_row_t), allocatable :: rows(:)
+    !> Which of its rows the kernel's slots hold, between the bands of one evaluation.
+    type(kernel_slots_t) :: slots
     !> Cell forces of the prescribed dofs, for the reactions.
     real(wp), allocatable :: f_bc(:)
     !> External forces, stored only for the owned nodes that carry a load: ext_node(s) is
@@ -382,6 +394,8 @@ contains
     end do
     call index_loaded_nodes(this, lat%n_owned)
     call this%split%init(lat%cells, lat%n_owned, lat%n_local)
+    call this%bands%init(lat%cells, lat%n_owned, lat%n_local)
+    call order_by_node(this%bc_node, lat%n_owned, this%bc_by_node)
     this%rows = kernel_rows()
     allocate(this%f_bc(size(this%bc_node)))
     ! the damping powers only with that damping
@@ -391,9 +405,9 @@ contains
     if (this%alpha > 0.0_wp) na = lat%n_owned
     allocate(this%pw_cell(nd), this%pw_node(na), &
              this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), &
-             this%r_bc(size(this%bc_node)), stat=ierr)
+             this%r_bc(size(this%bc_node)), this%pr_on(size(this%bc_node)), stat=ierr)
     call g%note(ierr, 'the energy terms of the rank', 8.0_wp*nd + &
-                8.0_wp*(na + 2*size(this%bc_node)))
+                8.0_wp*(na + 2*size(this%bc_node)) + 4.0_wp*size(this%bc_node))
     if (g%failed) then
       call g%pass(guard)
       return
@@ -404,9 +418,34 @@ contains
     this%pe_slot = 0.0_wp
     this%pr_bc = 0.0_wp
     this%r_bc = 0.0_wp
+    this%pr_on = .false.
     call this%w_ext_acc%reset()
     call this%w_damp_acc%reset()
   end subroutine model_init
+
+  !> The entries of node (values 1..n_nodes) in ascending order of their nodes, entries of
+  !> one node in their order.
+  pure subroutine order_by_node(node, n_nodes, order)
+    integer, intent(in) :: node(:), n_nodes
+    integer, allocatable, intent(out) :: order(:)
+    integer, allocatable :: first(:)
+    integer :: j, l
+    ! a counting sort: first(l) is where node l's entries start
+    allocate(first(n_nodes + 1), order(size(node)))
+    first = 0
+    do j = 1, size(node)
+      first(node(j)) = first(node(j)) + 1
+    end do
+    l = 1
+    do j = 1, n_nodes + 1
+      l = l + first(j)
+      first(j) = l - first(j)
+    end do
+    do j = 1, size(node)
+      order(first(node(j))) = j
+      first(node(j)) = first(node(j)) + 1
+    end do
+  end subroutine order_by_node
 
   !> The slots of the loaded nodes (ascending node order) for the compact external forces.
   subroutine index_loaded_nodes(this, n_owned)

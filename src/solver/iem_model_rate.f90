@@ -39,13 +39,98 @@ contains
       deallocate(this%pw_node)
       allocate(this%pw_node(lat%n_owned), source=0.0_wp)
     end if
-    ! the cells' forces are summed into model%f, or (sum_in_acc) into acc itself
+    ! the cells' forces are summed into model%f, or (sum_in_acc) into acc itself; an RK4
+    ! stage on a rank without halo nodes (bands%active) and without stiffness damping goes
+    ! band by band
     if (this%sum_in_acc) then
       call evaluate(acc)
+    else if (present(stage) .and. this%bands%active .and. this%beta == 0.0_wp) then
+      call evaluate_bands(this%f)
     else
       call evaluate(this%f)
     end if
   contains
+
+    !> evaluate for an RK4 stage (no halo nodes, no stiffness damping) band by band
+    !> (docs/architecture.md, "The node pass band by band"): after each band's cells, the
+    !> nodes it completes take their reactions, load powers, loads, mass damping powers and
+    !> the stage's pass, in node order; the sums are formed in evaluate's order, so the
+    !> results are bit for bit evaluate's (but stage%total, a sum over the bands, which only
+    !> says whether all the new values are finite).
+    subroutine evaluate_bands(fs)
+      real(wp), intent(inout), contiguous :: fs(:, :)
+      real(wp) :: total
+      integer :: band, c1, lo, hi, js, jb, q
+      p_ext = 0.0_wp
+      p_damp = 0.0_wp
+      ! the pending agreement first: on a rejection nothing is evaluated (fs stays zero)
+      if (present(vote) .and. present(vote_all)) then
+        call timer_switch(t_force, t_halo, timed)
+        call MPI_Wait(vote, MPI_STATUS_IGNORE)
+        call MPI_F_sync_reg(vote_all)
+        if (timed) call timer_switch(t_halo, t_force)
+        if (.not. vote_all) then
+          if (present(first_bad)) first_bad = 0
+          return
+        end if
+      end if
+      if (present(first_bad)) first_bad = 0
+      ! (a rank without halo nodes: the exchange has nothing to move)
+      if (present(halo)) call halo_part(1)
+      call rebuild_loads()
+      stage%total = 0.0_wp
+      js = 1
+      jb = 1
+      c1 = 1
+      lo = 1
+      do band = 1, this%bands%n_bands()
+        call cells(fs, lat%cells, chunk_range=[c1, this%bands%last_chunk(band)])
+        c1 = this%bands%last_chunk(band) + 1
+        hi = this%bands%done(band)
+        ! the reactions and their powers, the loads' powers and the loads of nodes lo..hi
+        do while (jb <= size(this%bc_by_node))
+          q = this%bc_by_node(jb)
+          if (this%bc_node(q) > hi) exit
+          call reaction_terms(fs, q)
+          jb = jb + 1
+        end do
+        do while (js <= size(this%ext_node))
+          if (this%ext_node(js) > hi) exit
+          associate(l => this%ext_node(js))
+            this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
+            p_ext = p_ext + this%pe_slot(js)
+            fs(:, l) = fs(:, l) - this%fext(:, js)
+          end associate
+          js = js + 1
+        end do
+        call timer_switch(t_force, t_update, timed)
+        if (this%alpha > 0.0_wp) call mass_damping_powers(hi - lo + 1, this%alpha, &
+                                                          this%mass(lo:hi), y(:, lo:hi), &
+                                                          this%pw_node(lo:hi), p_damp)
+        associate(n_b => hi - lo + 1)
+          select case (stage%stage)
+          case (1)
+            call rk4_first_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, stage%h, &
+                                y(:, lo:hi), fs(:, lo:hi), ynew(:, lo:hi), ynext(:, lo:hi))
+          case (2, 3)
+            call rk4_mid_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, stage%h, &
+                              y0(:, lo:hi), fs(:, lo:hi), ynew(:, lo:hi), y(:, lo:hi))
+          case default
+            call rk4_last_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, y(:, lo:hi), &
+                               fs(:, lo:hi), ynew(:, lo:hi), total)
+            stage%total = stage%total + total
+          end select
+        end associate
+        if (timed) call timer_switch(t_update, t_force)
+        lo = hi + 1
+      end do
+      ! the reactions' powers after the loads', each dof in its order, as evaluate sums them
+      do q = 1, size(this%bc_node)
+        if (this%pr_on(q)) p_ext = p_ext + this%pr_bc(q)
+      end do
+      call imposed_rates(fs)
+    end subroutine evaluate_bands
+
 
     !> The evaluation with the cell forces summed into fs (all zero on entry): the cells, the
     !> loads and reactions, the powers and the pass over the owned nodes, which clears fs or
@@ -70,28 +155,15 @@ contains
         p_damp = 0.0_wp
         if (this%beta > 0.0_wp) call counted_cell_powers(lat, this%pw_cell, p_damp)
       end if
-      ! external loads: rebuilt only when a time function has changed
-      changed = .false.
-      do ld = 1, size(this%load_tf)
-        r = tf_value(this%load_tf(ld), t)
-        if (r /= this%load_scale(ld)) changed = .true.
-        this%load_scale(ld) = r
-      end do
-      if (changed) then
-        this%fext = 0.0_wp
-        do n = 1, size(this%load_node)
-          s = this%load_slot(n)
-          this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
-        end do
-      end if
-      ! the cell forces of the prescribed dofs, for the reactions; the halo nodes' forces are
-      ! not used
+      call rebuild_loads()
+      ! the cell forces of the prescribed dofs, for the reactions, and the powers at the
+      ! evaluated state (before a fused RK4 pass moves y on): of the loads, of the support
+      ! reactions (which need the imposed accelerations), of mass damping; the halo nodes'
+      ! forces are not used
       do n = 1, size(this%bc_node)
-        this%f_bc(n) = fs(this%bc_comp(n), this%bc_node(n))
+        call reaction_terms(fs, n)
       end do
       fs(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
-      ! powers at the evaluated state (before a fused RK4 pass moves y on): of the loads, of
-      ! the support reactions (which need the imposed accelerations), of mass damping
       p_ext = 0.0_wp
       do s = 1, size(this%ext_node)
         l = this%ext_node(s)
@@ -99,22 +171,7 @@ contains
         p_ext = p_ext + this%pe_slot(s)
       end do
       do n = 1, size(this%bc_node)
-        l = this%bc_node(n)
-        comp = this%bc_comp(n)
-        b = this%bc_id(n)
-        this%pr_bc(n) = 0.0_wp
-        if (t >= this%bc_release(b)) cycle
-        a_imp = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
-        if (keep) then
-          this%r_bc(n) = this%f_bc(n)
-          if (this%bc_slot(n) > 0) this%r_bc(n) = this%r_bc(n) - this%fext(comp, this%bc_slot(n))
-        end if
-        if (y(2 + comp, l) /= 0.0_wp) then
-          r = this%mass(l)*(a_imp + this%alpha*y(2 + comp, l)) + this%f_bc(n)
-          if (this%bc_slot(n) > 0) r = r - this%fext(comp, this%bc_slot(n))
-          this%pr_bc(n) = r*y(2 + comp, l)
-          p_ext = p_ext + this%pr_bc(n)
-        end if
+        if (this%pr_on(n)) p_ext = p_ext + this%pr_bc(n)
       end do
       if (this%alpha > 0.0_wp) call mass_damping_powers(lat%n_owned, this%alpha, this%mass, y, &
                                                         this%pw_node, p_damp)
@@ -169,6 +226,13 @@ contains
       ! (with drift the pass has cleared acc for the next step's forces: the prescribed dofs'
       ! rates are not used there, their values set by the caller)
       if (present(drift)) return
+      call imposed_rates(fs)
+    end subroutine evaluate
+
+    !> The rates of the prescribed dofs (into fs with sum_in_acc, else into acc when it has
+    !> columns) and capped damping's filter rates, after the pass.
+    subroutine imposed_rates(fs)
+      real(wp), intent(inout), contiguous :: fs(:, :)
       do n = 1, size(this%bc_node)
         b = this%bc_id(n)
         if (t >= this%bc_release(b)) cycle
@@ -181,7 +245,51 @@ contains
       end do
       ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
       if (this%omega_cap > 0.0_wp) call filter_rates(lat%n_owned, this%omega_cap, y, acc)
-    end subroutine evaluate
+    end subroutine imposed_rates
+
+    !> The external loads fext at t: rebuilt only when a time function has changed.
+    subroutine rebuild_loads()
+      changed = .false.
+      do ld = 1, size(this%load_tf)
+        r = tf_value(this%load_tf(ld), t)
+        if (r /= this%load_scale(ld)) changed = .true.
+        this%load_scale(ld) = r
+      end do
+      if (.not. changed) return
+      this%fext = 0.0_wp
+      do n = 1, size(this%load_node)
+        s = this%load_slot(n)
+        this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+      end do
+    end subroutine rebuild_loads
+
+    !> Prescribed dof q at the evaluated state, from its node's cell forces in fs (before the
+    !> loads are taken off): its cell force f_bc, with keep its reaction r_bc, and its
+    !> reaction's power pr_bc (pr_on: whether it enters p_ext: not released, moving).
+    subroutine reaction_terms(fs, q)
+      real(wp), intent(in), contiguous :: fs(:, :)
+      integer, intent(in) :: q
+      real(wp) :: rq
+      integer :: lq, cq, bq
+      lq = this%bc_node(q)
+      cq = this%bc_comp(q)
+      bq = this%bc_id(q)
+      this%f_bc(q) = fs(cq, lq)
+      this%pr_bc(q) = 0.0_wp
+      this%pr_on(q) = .false.
+      if (t >= this%bc_release(bq)) return
+      a_imp = this%bc_velocity(cq, bq)*tf_rate(this%bc_tf(bq), t)
+      if (keep) then
+        this%r_bc(q) = this%f_bc(q)
+        if (this%bc_slot(q) > 0) this%r_bc(q) = this%r_bc(q) - this%fext(cq, this%bc_slot(q))
+      end if
+      if (y(2 + cq, lq) /= 0.0_wp) then
+        rq = this%mass(lq)*(a_imp + this%alpha*y(2 + cq, lq)) + this%f_bc(q)
+        if (this%bc_slot(q) > 0) rq = rq - this%fext(cq, this%bc_slot(q))
+        this%pr_bc(q) = rq*y(2 + cq, lq)
+        this%pr_on(q) = .true.
+      end if
+    end subroutine reaction_terms
 
     !> The halo exchange (1), its start (2) or its finish (3), timed as such.
     subroutine halo_part(part)
@@ -199,69 +307,81 @@ contains
       if (switched) call timer_switch(t_halo, t_force)
     end subroutine halo_part
 
-    !> The cell forces of the chunks of table (with at, those of the split's routed chunks),
-    !> summed into fs; their cells' energies added to en_sum when the evaluation keeps them.
-    subroutine cells(fs, table, at)
+    !> The cell forces of the chunks of table (with at, those of the split's routed chunks;
+    !> with chunk_range, only those chunks), summed into fs; their cells' energies added to
+    !> en_sum when the evaluation keeps them. The kernel's damping power goes to p_damp, but
+    !> with chunk_range (which evaluate_bands uses only without stiffness damping).
+    subroutine cells(fs, table, at, chunk_range)
       real(wp), intent(inout), contiguous :: fs(:, :)
       type(cell_table_t), intent(in) :: table
       integer, intent(in), optional, contiguous :: at(:)
+      integer, intent(in), optional :: chunk_range(2)
+      real(wp) :: pd
       if (energies) then
-        call chunks(fs, table, at, this%en_sum)
+        call chunks(fs, table, pd, at, this%en_sum, chunk_range)
       else
-        call chunks(fs, table, at)
+        call chunks(fs, table, pd, at, range=chunk_range)
       end if
+      if (.not. present(chunk_range)) p_damp = pd
     end subroutine cells
 
-    !> The kernel's calls of cells, with terms (the energies' exact sum) or without.
-    subroutine chunks(fs, table, at, terms)
+    !> The kernel's calls of cells, with terms (the energies' exact sum) or without; pd the
+    !> kernel's damping power.
+    subroutine chunks(fs, table, pd, at, terms, range)
       real(wp), intent(inout), contiguous :: fs(:, :)
       type(cell_table_t), intent(in) :: table
+      real(wp), intent(out) :: pd
       integer, intent(in), optional, contiguous :: at(:)
       type(exact_sum_t), intent(inout), optional :: terms
+      integer, intent(in), optional :: range(2)
       ! no array of the cells' energies: an empty one says so (the kernel then forms no plain
       ! sum of them either)
       real(wp) :: none(0)
       if (this%nonlinear) then
         if (this%mixed) then
           call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                           this%energy, p_damp, this%n_state - 1, this%nl, accept, this%ks, &
+                           this%energy, pd, this%n_state - 1, this%nl, accept, this%ks, &
                            lat%cell_mat, none, this%pw_cell, energy_terms=terms, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
-                           side=this%split%side)
+                           side=this%split%side, chunks=range, slots=this%slots)
         else
           call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                           this%energy, p_damp, this%n_state - 1, this%nl, accept, &
+                           this%energy, pd, this%n_state - 1, this%nl, accept, &
                            cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
                            add=.true., rows=this%rows, route_at=at, &
-                           route=this%split%route, side=this%split%side)
+                           route=this%split%route, side=this%split%side, &
+                           chunks=range, slots=this%slots)
         end if
       else if (this%fracture) then
         if (this%mixed) then
           call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                           this%energy, p_damp, this%n_state - 1, commit=accept, ks=this%ks, &
+                           this%energy, pd, this%n_state - 1, commit=accept, ks=this%ks, &
                            cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
                            cell_power=this%pw_cell, fr=this%fr, time=t, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
-                           side=this%split%side)
+                           side=this%split%side, chunks=range, slots=this%slots)
         else
           call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                           this%energy, p_damp, this%n_state - 1, commit=accept, &
+                           this%energy, pd, this%n_state - 1, commit=accept, &
                            cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
                            fr=this%fr, time=t, add=.true., rows=this%rows, &
-                           route_at=at, route=this%split%route, side=this%split%side)
+                           route_at=at, route=this%split%route, side=this%split%side, &
+                         chunks=range, slots=this%slots)
         end if
       else if (this%mixed) then
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                         this%energy, p_damp, this%n_state - 1, ks=this%ks, &
+                         this%energy, pd, this%n_state - 1, ks=this%ks, &
                          cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
                          cell_power=this%pw_cell, add=.true., rows=this%rows, &
-                         route_at=at, route=this%split%route, side=this%split%side)
+                         route_at=at, route=this%split%route, side=this%split%side, &
+                         chunks=range, slots=this%slots)
       else
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                         this%energy, p_damp, this%n_state - 1, cell_energy=none, &
+                         this%energy, pd, this%n_state - 1, cell_energy=none, &
                          energy_terms=terms, &
                          cell_power=this%pw_cell, add=.true., rows=this%rows, &
-                         route_at=at, route=this%split%route, side=this%split%side)
+                         route_at=at, route=this%split%route, side=this%split%side, &
+                         chunks=range, slots=this%slots)
       end if
     end subroutine chunks
   end procedure model_rate

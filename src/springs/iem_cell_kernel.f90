@@ -28,11 +28,19 @@ module iem_cell_kernel
   implicit none
   private
   public :: cell_energy, cell_force, cell_forces, cell_strain_measures
-  public :: kernel_rows
+  public :: kernel_rows, kernel_slots_t
 
   !> Node rows the kernel keeps for reuse by the chunk above (a rank's row of up to 64 chunks,
   !> 4096 cells, reuses every row once; wider rows measure their rows twice).
   integer, parameter :: kernel_slots = 64
+
+  !> Which node rows the kernel's slots hold, kept between calls that go on with the sweep
+  !> of one table (cell_forces' chunks and slots, with the same rows).
+  type :: kernel_slots_t
+    !> Each slot's first node (-1: free) and number of edges; the next slot to take, and the
+    !> slot freed by the last chunk (0: none).
+    integer :: node(kernel_slots) = -1, m(kernel_slots) = 0, next = 1, spare = 0
+  end type kernel_slots_t
 
 contains
 
@@ -111,7 +119,7 @@ contains
   !> commit their damage is committed at time (iem_fracture_kernel).
   pure subroutine cell_forces(k, cells, n_owned, y, beta, f, energy, damp_power, damp_row, &
                               nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, &
-                              add, rows, route_at, route, side, energy_terms)
+                              add, rows, route_at, route, side, energy_terms, chunks, slots)
     type(cell_constants_t), intent(in) :: k
     !> The cells, in chunks, with their corners.
     type(cell_table_t), intent(in) :: cells
@@ -140,6 +148,13 @@ contains
     real(wp), intent(inout), optional, contiguous :: side(:, :)
     !> The exact sum the counted cells' energies are added to (then energy is 0).
     type(exact_sum_t), intent(inout), optional :: energy_terms
+    !> Only the chunks chunks(1) .. chunks(2) of the table (energy and damp_power are then
+    !> theirs alone).
+    integer, intent(in), optional :: chunks(2)
+    !> The rows' slots, kept for the next call (with rows): a call from a first chunk after 1
+    !> takes them from the call before, which left its chunks' top rows in rows (the nodes of
+    !> those rows not changed since).
+    type(kernel_slots_t), intent(inout), optional :: slots
     ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
     ! (w) and, with filtered damping, the velocities (p)
     integer :: bn(0:chunk), tn(0:chunk), cq(4, chunk)
@@ -158,7 +173,7 @@ contains
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk), ep(chunk, 4), s(chunk, 4)
     real(wp) :: gx(chunk, 4), gy(chunk, 4), gen(chunk), gpw(chunk)
     logical :: dmg(chunk), counted(chunk)
-    integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0
+    integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0, ic_first, ic_last
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
     logical :: keep_terms
     logical :: lean, intact, paper
@@ -216,7 +231,21 @@ contains
     slot_m = 0
     next_slot = 1
     spare = 0
-    do ic = 1, n_chunks()
+    if (present(slots) .and. present(rows) .and. present(chunks)) then
+      if (chunks(1) > 1) then
+        slot_node = slots%node
+        slot_m = slots%m
+        next_slot = slots%next
+        spare = slots%spare
+      end if
+    end if
+    ic_first = 1
+    ic_last = n_chunks()
+    if (present(chunks)) then
+      ic_first = chunks(1)
+      ic_last = chunks(2)
+    end if
+    do ic = ic_first, ic_last
       call chunk_of(ic, c0, m, consec, b0, t0)
       ! the next chunk's top node row (values and forces) into the caches meanwhile
       if (ic < n_chunks()) call prefetch_chunk(ic + 1)
@@ -380,6 +409,12 @@ contains
       if (keep_energy) cell_energy(c0:c0 + m - 1) = en(1:m)
       if (keep_power) cell_power(c0:c0 + m - 1) = pw(1:m)
     end do
+    if (present(slots)) then
+      slots%node = slot_node
+      slots%m = slot_m
+      slots%next = next_slot
+      slots%spare = spare
+    end if
   contains
 
     !> The number of chunks.
