@@ -78,9 +78,9 @@ module iem_model
     !> The interior and boundary chunks, for evaluations that overlap the halo exchange (the
     !> evaluations without it walk the lattice's own chunks, lat%cells).
     type(cell_split_t) :: split
-    !> The bands of the lattice's chunks for an RK4 stage's evaluation on a rank without halo
-    !> nodes: the stage's pass over the nodes follows the cells band by band (docs/
-    !> architecture.md, "The node pass band by band").
+    !> The bands of the lattice's chunks (with halo nodes, of the split's interior chunks) for
+    !> an RK4 stage's evaluation: the stage's pass over the nodes follows the cells band by
+    !> band (docs/architecture.md, "The node pass band by band").
     type(cell_bands_t) :: bands
     !> The prescribed dofs in the order of their nodes (stable): bc_by_node(j) is an entry of
     !> bc_node.
@@ -394,7 +394,11 @@ contains
     end do
     call index_loaded_nodes(this, lat%n_owned)
     call this%split%init(lat%cells, lat%n_owned, lat%n_local)
-    call this%bands%init(lat%cells, lat%n_owned, lat%n_local)
+    if (this%split%active) then
+      call this%bands%init(this%split%cells_in, lat%n_owned, this%split%d_node)
+    else
+      call this%bands%init(lat%cells, lat%n_owned)
+    end if
     call order_by_node(this%bc_node, lat%n_owned, this%bc_by_node)
     this%rows = kernel_rows()
     allocate(this%f_bc(size(this%bc_node)))

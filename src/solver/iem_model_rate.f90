@@ -40,96 +40,157 @@ contains
       allocate(this%pw_node(lat%n_owned), source=0.0_wp)
     end if
     ! the cells' forces are summed into model%f, or (sum_in_acc) into acc itself; an RK4
-    ! stage on a rank without halo nodes (bands%active) and without stiffness damping goes
-    ! band by band
+    ! stage without stiffness damping goes band by band (bands%active; with halo nodes, when
+    ! the halo is exchanged here)
     if (this%sum_in_acc) then
       call evaluate(acc)
-    else if (present(stage) .and. this%bands%active .and. this%beta == 0.0_wp) then
+    else if (present(stage) .and. this%bands%active .and. this%beta == 0.0_wp .and. &
+             (present(halo) .or. .not. this%split%active) .and. &
+             .not. (present(vote) .and. this%split%active)) then
       call evaluate_bands(this%f)
     else
       call evaluate(this%f)
     end if
   contains
 
-    !> evaluate for an RK4 stage (no halo nodes, no stiffness damping) band by band
-    !> (docs/architecture.md, "The node pass band by band"): after each band's cells, the
-    !> nodes it completes take their reactions, load powers, loads, mass damping powers and
-    !> the stage's pass, in node order; the sums are formed in evaluate's order, so the
-    !> results are bit for bit evaluate's (but stage%total, a sum over the bands, which only
-    !> says whether all the new values are finite).
+    !> evaluate for an RK4 stage without stiffness damping band by band (docs/architecture.md,
+    !> "The node pass band by band"): after each band's cells (with halo nodes: of the
+    !> interior cells, while the halo values travel), the nodes it completes take their
+    !> reactions, load powers, loads, mass damping powers and the stage's pass; with halo
+    !> nodes, the nodes of D then after the boundary cells. The sums over nodes are formed
+    !> after the pass in evaluate's order, so the results are bit for bit evaluate's (but
+    !> stage%total, a sum over the runs of nodes, which only says whether all the new values
+    !> are finite).
     subroutine evaluate_bands(fs)
       real(wp), intent(inout), contiguous :: fs(:, :)
-      real(wp) :: total
-      integer :: band, c1, lo, hi, js, jb, q
+      integer :: band, c1, r, nb, s_, q, jb, js
       p_ext = 0.0_wp
       p_damp = 0.0_wp
-      ! the pending agreement first: on a rejection nothing is evaluated (fs stays zero)
-      if (present(vote) .and. present(vote_all)) then
-        call timer_switch(t_force, t_halo, timed)
-        call MPI_Wait(vote, MPI_STATUS_IGNORE)
-        call MPI_F_sync_reg(vote_all)
-        if (timed) call timer_switch(t_halo, t_force)
-        if (.not. vote_all) then
-          if (present(first_bad)) first_bad = 0
-          return
-        end if
-      end if
       if (present(first_bad)) first_bad = 0
-      ! (a rank without halo nodes: the exchange has nothing to move)
-      if (present(halo)) call halo_part(1)
+      if (this%split%active) then
+        call halo_part(2)
+      else if (present(halo)) then
+        ! (a rank without halo nodes: the exchange has nothing to move)
+        call halo_part(1)
+      end if
       call rebuild_loads()
       stage%total = 0.0_wp
-      js = 1
       jb = 1
+      js = 1
+      nb = this%bands%n_bands()
       c1 = 1
-      lo = 1
-      do band = 1, this%bands%n_bands()
-        call cells(fs, lat%cells, chunk_range=[c1, this%bands%last_chunk(band)])
+      do band = 1, nb
+        if (this%split%active) then
+          call cells(fs, this%split%cells_in, this%split%at_in, &
+                     chunk_range=[c1, this%bands%last_chunk(band)])
+        else
+          call cells(fs, lat%cells, chunk_range=[c1, this%bands%last_chunk(band)])
+        end if
         c1 = this%bands%last_chunk(band) + 1
-        hi = this%bands%done(band)
-        ! the reactions and their powers, the loads' powers and the loads of nodes lo..hi
-        do while (jb <= size(this%bc_by_node))
-          q = this%bc_by_node(jb)
-          if (this%bc_node(q) > hi) exit
-          call reaction_terms(fs, q)
-          jb = jb + 1
-        end do
-        do while (js <= size(this%ext_node))
-          if (this%ext_node(js) > hi) exit
-          associate(l => this%ext_node(js))
-            this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
-            p_ext = p_ext + this%pe_slot(js)
-            fs(:, l) = fs(:, l) - this%fext(:, js)
-          end associate
-          js = js + 1
-        end do
+        if (band == 1 .and. present(vote) .and. present(vote_all)) then
+          ! the pending agreement on the state the first pass overwrites: on a rejection the
+          ! other cells are evaluated (as evaluate does), the pass skipped and fs cleared
+          call timer_switch(t_force, t_halo, timed)
+          call MPI_Wait(vote, MPI_STATUS_IGNORE)
+          call MPI_F_sync_reg(vote_all)
+          if (timed) call timer_switch(t_halo, t_force)
+          if (.not. vote_all) then
+            if (this%split%active) then
+              call cells(fs, this%split%cells_in, this%split%at_in, &
+                         chunk_range=[c1, this%split%cells_in%n_chunks()])
+              call halo_part(3)
+              call cells(fs, this%split%cells_bd, this%split%at_bd)
+            else
+              call cells(fs, lat%cells, chunk_range=[c1, lat%cells%n_chunks()])
+            end if
+            fs = 0.0_wp
+            return
+          end if
+        end if
         call timer_switch(t_force, t_update, timed)
-        if (this%alpha > 0.0_wp) call mass_damping_powers(hi - lo + 1, this%alpha, &
-                                                          this%mass(lo:hi), y(:, lo:hi), &
-                                                          this%pw_node(lo:hi), p_damp)
-        associate(n_b => hi - lo + 1)
-          select case (stage%stage)
-          case (1)
-            call rk4_first_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, stage%h, &
-                                y(:, lo:hi), fs(:, lo:hi), ynew(:, lo:hi), ynext(:, lo:hi))
-          case (2, 3)
-            call rk4_mid_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, stage%h, &
-                              y0(:, lo:hi), fs(:, lo:hi), ynew(:, lo:hi), y(:, lo:hi))
-          case default
-            call rk4_last_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, y(:, lo:hi), &
-                               fs(:, lo:hi), ynew(:, lo:hi), total)
-            stage%total = stage%total + total
-          end select
-        end associate
+        do r = this%bands%run_first(band), this%bands%run_first(band + 1) - 1
+          call run_nodes(fs, this%bands%runs(1, r), this%bands%runs(2, r), jb, js)
+        end do
         if (timed) call timer_switch(t_update, t_force)
-        lo = hi + 1
       end do
-      ! the reactions' powers after the loads', each dof in its order, as evaluate sums them
+      if (this%split%active) then
+        ! the boundary cells, then D's nodes
+        call halo_part(3)
+        call cells(fs, this%split%cells_bd, this%split%at_bd)
+        call this%split%sum_side(fs)
+        p_damp = 0.0_wp
+        fs(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
+        ! (D's nodes: the prescribed dofs and loads from the first again)
+        jb = 1
+        js = 1
+        call timer_switch(t_force, t_update, timed)
+        do r = this%bands%run_first(nb + 1), this%bands%run_first(nb + 2) - 1
+          call run_nodes(fs, this%bands%runs(1, r), this%bands%runs(2, r), jb, js)
+        end do
+        if (timed) call timer_switch(t_update, t_force)
+      end if
+      ! the sums in evaluate's order: the loads' powers, then the reactions', each in its
+      ! order; the mass damping powers in node order
+      do s_ = 1, size(this%ext_node)
+        p_ext = p_ext + this%pe_slot(s_)
+      end do
       do q = 1, size(this%bc_node)
         if (this%pr_on(q)) p_ext = p_ext + this%pr_bc(q)
       end do
+      if (this%alpha > 0.0_wp) call sum_in_order(lat%n_owned, this%pw_node, p_damp)
       call imposed_rates(fs)
     end subroutine evaluate_bands
+
+    !> The nodes lo..hi, whose cell forces are complete in fs: the reactions and reaction
+    !> powers of their prescribed dofs, the powers of their loads and the loads, their mass
+    !> damping powers (the sums are the caller's), then the stage's pass over them. jb and js
+    !> are where the search for their dofs (in bc_by_node) and load slots starts, and are left
+    !> after them (runs in ascending order need not search from the first).
+    subroutine run_nodes(fs, lo, hi, jb, js)
+      real(wp), intent(inout), contiguous :: fs(:, :)
+      integer, intent(in) :: lo, hi
+      integer, intent(inout) :: jb, js
+      real(wp) :: total, none
+      do while (jb <= size(this%bc_by_node))
+        if (this%bc_node(this%bc_by_node(jb)) >= lo) exit
+        jb = jb + 1
+      end do
+      do while (jb <= size(this%bc_by_node))
+        if (this%bc_node(this%bc_by_node(jb)) > hi) exit
+        call reaction_terms(fs, this%bc_by_node(jb))
+        jb = jb + 1
+      end do
+      do while (js <= size(this%ext_node))
+        if (this%ext_node(js) >= lo) exit
+        js = js + 1
+      end do
+      do while (js <= size(this%ext_node))
+        if (this%ext_node(js) > hi) exit
+        associate(l => this%ext_node(js))
+          this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
+          fs(:, l) = fs(:, l) - this%fext(:, js)
+        end associate
+        js = js + 1
+      end do
+      none = 0.0_wp
+      if (this%alpha > 0.0_wp) call mass_damping_powers(hi - lo + 1, this%alpha, &
+                                                        this%mass(lo:hi), y(:, lo:hi), &
+                                                        this%pw_node(lo:hi), none)
+      associate(n_b => hi - lo + 1)
+        select case (stage%stage)
+        case (1)
+          call rk4_first_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, stage%h, &
+                              y(:, lo:hi), fs(:, lo:hi), ynew(:, lo:hi), ynext(:, lo:hi))
+        case (2, 3)
+          call rk4_mid_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, stage%h, &
+                            y0(:, lo:hi), fs(:, lo:hi), ynew(:, lo:hi), y(:, lo:hi))
+        case default
+          call rk4_last_pass(n_b, this%alpha, this%mass(lo:hi), stage%wdt, y(:, lo:hi), &
+                             fs(:, lo:hi), ynew(:, lo:hi), total)
+          stage%total = stage%total + total
+        end select
+      end associate
+    end subroutine run_nodes
 
 
     !> The evaluation with the cell forces summed into fs (all zero on entry): the cells, the
@@ -402,6 +463,20 @@ contains
     end do
     p = sum_p
   end subroutine mass_damping_powers
+
+  !> The terms pw(1:n) added to p in their order.
+  pure subroutine sum_in_order(n, pw, p)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: pw(:)
+    real(wp), intent(inout) :: p
+    real(wp) :: sum_p
+    integer :: l
+    sum_p = p
+    do l = 1, n
+      sum_p = sum_p + pw(l)
+    end do
+    p = sum_p
+  end subroutine sum_in_order
 
   !> The sum p of the stiffness damping's powers pw of the cells this rank counts (first
   !> corner owned), in cell order.
