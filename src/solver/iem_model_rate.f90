@@ -88,21 +88,15 @@ contains
         end if
         c1 = this%bands%last_chunk(band) + 1
         if (band == 1 .and. present(vote) .and. present(vote_all)) then
-          ! the pending agreement on the state the first pass overwrites: on a rejection the
-          ! other cells are evaluated (as evaluate does), the pass skipped and fs cleared
+          ! the pending agreement on the state the first pass overwrites (only without halo
+          ! nodes: with them, such a stage goes in one sweep): on a rejection the other cells
+          ! are evaluated (as evaluate does), the passes skipped and fs cleared
           call timer_switch(t_force, t_halo, timed)
           call MPI_Wait(vote, MPI_STATUS_IGNORE)
           call MPI_F_sync_reg(vote_all)
           if (timed) call timer_switch(t_halo, t_force)
           if (.not. vote_all) then
-            if (this%split%active) then
-              call cells(fs, this%split%cells_in, this%split%at_in, &
-                         chunk_range=[c1, this%split%cells_in%n_chunks()])
-              call halo_part(3)
-              call cells(fs, this%split%cells_bd, this%split%at_bd)
-            else
-              call cells(fs, lat%cells, chunk_range=[c1, lat%cells%n_chunks()])
-            end if
+            call cells(fs, lat%cells, chunk_range=[c1, lat%cells%n_chunks()])
             fs = 0.0_wp
             return
           end if
@@ -191,7 +185,6 @@ contains
         end select
       end associate
     end subroutine run_nodes
-
 
     !> The evaluation with the cell forces summed into fs (all zero on entry): the cells, the
     !> loads and reactions, the powers and the pass over the owned nodes, which clears fs or
@@ -427,7 +420,7 @@ contains
                            cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
                            fr=this%fr, time=t, add=.true., rows=this%rows, &
                            route_at=at, route=this%split%route, side=this%split%side, &
-                         chunks=range, slots=this%slots)
+                           chunks=range, slots=this%slots)
         end if
       else if (this%mixed) then
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
