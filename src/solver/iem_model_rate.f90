@@ -2,7 +2,7 @@
 !> iem_model.f90): the cell forces, with or without the overlapped halo exchange, the loads
 !> and reactions, the powers, and the pass over the owned nodes.
 submodule (iem_model) iem_model_rate
-  use mpi_f08, only: MPI_Wait, MPI_STATUS_IGNORE, MPI_F_sync_reg
+  use mpi_f08, only: MPI_Wait, MPI_Test, MPI_STATUS_IGNORE, MPI_F_sync_reg
   use iem_timers, only: timer_switch, t_force, t_halo, t_update
   use iem_node_pass, only: accelerations_in_place
   use iem_cell_table, only: cell_table_t
@@ -45,8 +45,7 @@ contains
     if (this%sum_in_acc) then
       call evaluate(acc)
     else if (present(stage) .and. this%bands%active .and. this%beta == 0.0_wp .and. &
-             (present(halo) .or. .not. this%split%active) .and. &
-             .not. (present(vote) .and. this%split%active)) then
+             (present(halo) .or. .not. this%split%active)) then
       call evaluate_bands(this%f)
     else
       call evaluate(this%f)
@@ -56,14 +55,16 @@ contains
     !> evaluate for an RK4 stage without stiffness damping band by band (docs/architecture.md,
     !> "The node pass band by band"): after each band's cells (with halo nodes: of the
     !> interior cells, while the halo values travel), the nodes it completes take their
-    !> reactions, load powers, loads, mass damping powers and the stage's pass; with halo
-    !> nodes, the nodes of D then after the boundary cells. The sums over nodes are formed
+    !> reactions, load powers, loads, mass damping powers and the stage's pass, once a pending
+    !> agreement on the last step has come (until then the bands' passes wait, the cells go
+    !> on); with halo nodes, the nodes of D then after the boundary cells. The sums over nodes are formed
     !> after the pass in evaluate's order, so the results are bit for bit evaluate's (but
     !> stage%total, a sum over the runs of nodes, which only says whether all the new values
     !> are finite).
     subroutine evaluate_bands(fs)
       real(wp), intent(inout), contiguous :: fs(:, :)
-      integer :: band, c1, r, nb, s_, q, jb, js
+      integer :: band, c1, r, nb, s_, q, jb, js, passed
+      logical :: known
       p_ext = 0.0_wp
       p_damp = 0.0_wp
       if (present(first_bad)) first_bad = 0
@@ -79,6 +80,10 @@ contains
       js = 1
       nb = this%bands%n_bands()
       c1 = 1
+      ! a pending agreement on the last step (the state the first pass overwrites) is tested
+      ! after each band's cells; the passes wait for it, the cells do not
+      known = .not. (present(vote) .and. present(vote_all))
+      passed = 0
       do band = 1, nb
         if (this%split%active) then
           call cells(fs, this%split%cells_in, this%split%at_in, &
@@ -87,26 +92,23 @@ contains
           call cells(fs, lat%cells, chunk_range=[c1, this%bands%last_chunk(band)])
         end if
         c1 = this%bands%last_chunk(band) + 1
-        if (band == 1 .and. present(vote) .and. present(vote_all)) then
-          ! the pending agreement on the state the first pass overwrites (only without halo
-          ! nodes: with them, such a stage goes in one sweep): on a rejection the other cells
-          ! are evaluated (as evaluate does), the passes skipped and fs cleared
-          call timer_switch(t_force, t_halo, timed)
-          call MPI_Wait(vote, MPI_STATUS_IGNORE)
-          call MPI_F_sync_reg(vote_all)
-          if (timed) call timer_switch(t_halo, t_force)
-          if (.not. vote_all) then
-            call cells(fs, lat%cells, chunk_range=[c1, lat%cells%n_chunks()])
-            fs = 0.0_wp
+        if (.not. known) then
+          call agreement(.false., known)
+          if (known .and. .not. vote_all) then
+            call rejected_rest(fs, c1)
             return
           end if
         end if
-        call timer_switch(t_force, t_update, timed)
-        do r = this%bands%run_first(band), this%bands%run_first(band + 1) - 1
-          call run_nodes(fs, this%bands%runs(1, r), this%bands%runs(2, r), jb, js)
-        end do
-        if (timed) call timer_switch(t_update, t_force)
+        if (known) call pass_bands(fs, passed, band, jb, js)
       end do
+      if (.not. known) then
+        call agreement(.true., known)
+        if (.not. vote_all) then
+          call rejected_rest(fs, c1)
+          return
+        end if
+        call pass_bands(fs, passed, nb, jb, js)
+      end if
       if (this%split%active) then
         ! the boundary cells, then D's nodes
         call halo_part(3)
@@ -134,6 +136,54 @@ contains
       if (this%alpha > 0.0_wp) call sum_in_order(lat%n_owned, this%pw_node, p_damp)
       call imposed_rates(fs)
     end subroutine evaluate_bands
+
+    !> Whether the pending agreement (vote) has come, waiting for it with wait; vote_all is
+    !> then every rank's verdict. Timed as halo exchange.
+    subroutine agreement(wait, known)
+      logical, intent(in) :: wait
+      logical, intent(out) :: known
+      call timer_switch(t_force, t_halo, timed)
+      if (wait) then
+        call MPI_Wait(vote, MPI_STATUS_IGNORE)
+        known = .true.
+      else
+        call MPI_Test(vote, known, MPI_STATUS_IGNORE)
+      end if
+      if (known) call MPI_F_sync_reg(vote_all)
+      if (timed) call timer_switch(t_halo, t_force)
+    end subroutine agreement
+
+    !> After a rejection found by evaluate_bands with the chunks before c1 evaluated: the
+    !> other cells, as evaluate evaluates them, and fs cleared (no pass).
+    subroutine rejected_rest(fs, c1)
+      real(wp), intent(inout), contiguous :: fs(:, :)
+      integer, intent(in) :: c1
+      if (this%split%active) then
+        call cells(fs, this%split%cells_in, this%split%at_in, &
+                   chunk_range=[c1, this%split%cells_in%n_chunks()])
+        call halo_part(3)
+        call cells(fs, this%split%cells_bd, this%split%at_bd)
+      else
+        call cells(fs, lat%cells, chunk_range=[c1, lat%cells%n_chunks()])
+      end if
+      fs = 0.0_wp
+    end subroutine rejected_rest
+
+    !> The runs of the bands passed + 1 .. last (run_nodes), timed as state updates; passed
+    !> becomes last.
+    subroutine pass_bands(fs, passed, last, jb, js)
+      real(wp), intent(inout), contiguous :: fs(:, :)
+      integer, intent(inout) :: passed, jb, js
+      integer, intent(in) :: last
+      integer :: r
+      if (last <= passed) return
+      call timer_switch(t_force, t_update, timed)
+      do r = this%bands%run_first(passed + 1), this%bands%run_first(last + 1) - 1
+        call run_nodes(fs, this%bands%runs(1, r), this%bands%runs(2, r), jb, js)
+      end do
+      if (timed) call timer_switch(t_update, t_force)
+      passed = last
+    end subroutine pass_bands
 
     !> The nodes lo..hi, whose cell forces are complete in fs: the reactions and reaction
     !> powers of their prescribed dofs, the powers of their loads and the loads, their mass
