@@ -63,7 +63,7 @@ contains
     !> are finite).
     subroutine evaluate_bands(fs)
       real(wp), intent(inout), contiguous :: fs(:, :)
-      integer :: band, c1, r, nb, s_, q, jb, js, passed
+      integer :: band, c1, nb, jb, js, passed
       logical :: known
       p_ext = 0.0_wp
       p_damp = 0.0_wp
@@ -116,23 +116,13 @@ contains
         call this%split%sum_side(fs)
         p_damp = 0.0_wp
         fs(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
-        ! (D's nodes: the prescribed dofs and loads from the first again)
+        ! D's nodes, the runs after the bands' (their dofs and loads searched from the first)
         jb = 1
         js = 1
-        call timer_switch(t_force, t_update, timed)
-        do r = this%bands%run_first(nb + 1), this%bands%run_first(nb + 2) - 1
-          call run_nodes(fs, this%bands%runs(1, r), this%bands%runs(2, r), jb, js)
-        end do
-        if (timed) call timer_switch(t_update, t_force)
+        call pass_bands(fs, passed, nb + 1, jb, js)
       end if
-      ! the sums in evaluate's order: the loads' powers, then the reactions', each in its
-      ! order; the mass damping powers in node order
-      do s_ = 1, size(this%ext_node)
-        p_ext = p_ext + this%pe_slot(s_)
-      end do
-      do q = 1, size(this%bc_node)
-        if (this%pr_on(q)) p_ext = p_ext + this%pr_bc(q)
-      end do
+      ! the sums in evaluate's order; the mass damping powers in node order
+      call external_power()
       if (this%alpha > 0.0_wp) call sum_in_order(lat%n_owned, this%pw_node, p_damp)
       call imposed_rates(fs)
     end subroutine evaluate_bands
@@ -268,15 +258,11 @@ contains
         call reaction_terms(fs, n)
       end do
       fs(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
-      p_ext = 0.0_wp
       do s = 1, size(this%ext_node)
         l = this%ext_node(s)
         this%pe_slot(s) = this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
-        p_ext = p_ext + this%pe_slot(s)
       end do
-      do n = 1, size(this%bc_node)
-        if (this%pr_on(n)) p_ext = p_ext + this%pr_bc(n)
-      end do
+      call external_power()
       if (this%alpha > 0.0_wp) call mass_damping_powers(lat%n_owned, this%alpha, this%mass, y, &
                                                         this%pw_node, p_damp)
       ! the loads act as negative cell forces; then the pass over the owned nodes, which clears
@@ -350,6 +336,18 @@ contains
       ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
       if (this%omega_cap > 0.0_wp) call filter_rates(lat%n_owned, this%omega_cap, y, acc)
     end subroutine imposed_rates
+
+    !> p_ext: the loads' powers pe_slot, then the reactions' powers pr_bc that enter it
+    !> (pr_on), each in its order.
+    subroutine external_power()
+      p_ext = 0.0_wp
+      do s = 1, size(this%ext_node)
+        p_ext = p_ext + this%pe_slot(s)
+      end do
+      do n = 1, size(this%bc_node)
+        if (this%pr_on(n)) p_ext = p_ext + this%pr_bc(n)
+      end do
+    end subroutine external_power
 
     !> The external loads fext at t: rebuilt only when a time function has changed.
     subroutine rebuild_loads()
