@@ -12,7 +12,7 @@ module iem_cell_chunk
   use iem_fracture_kernel, only: fracture_chunk, damaged_cell
   implicit none
   private
-  public :: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_general, &
+  public :: edge_row_t, edge_col_t, chunk_edges, edge_measure, edge_limit, chunk_general, &
             law_coefficients, damping_stresses
 
   !> The largest |(l/l0)^2 - 1| of an edge that edge_near measures.
@@ -36,24 +36,28 @@ contains
 
   !> The edges of a chunk of m cells between the node rows bot and top (their displacements
   !> given): the top row's edges, the vertical edges, and with bottom the bottom row's edges
-  !> (else already there: measured as the top row of the chunk below). Each edge depends on
-  !> its two nodes only.
-  pure subroutine chunk_edges(k, m, bot, top, bottom, v)
+  !> (else already there: measured as the top row of the chunk below). n_out counts the edges
+  !> whose |(l/l0)^2 - 1| passes near (edge_limit): of the bottom row (when measured here),
+  !> the top row and the vertical edges. Each edge depends on its two nodes only.
+  pure subroutine chunk_edges(k, m, bot, top, bottom, near, v, n_out)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     type(edge_row_t), intent(inout) :: bot, top
     logical, intent(in) :: bottom
+    real(wp), intent(in) :: near
     type(edge_col_t), intent(out) :: v
-    integer :: c, n_far
-    if (bottom) call row_edges(k, m, bot%u, bot%x, bot%y, bot%li, bot%st)
-    call row_edges(k, m, top%u, top%x, top%y, top%li, top%st)
+    integer, intent(inout) :: n_out(3)
+    integer :: c, n
+    if (bottom) call row_edges(k, m, near, bot%u, bot%x, bot%y, bot%li, bot%st, n_out(1))
+    call row_edges(k, m, near, top%u, top%x, top%y, top%li, top%st, n_out(2))
     ! a vertical edge: along it the y displacements, across it the x ones
-    n_far = 0
+    n = 0
     do c = 0, m
       call edge_near(top%u(c, 2) - bot%u(c, 2), top%u(c, 1) - bot%u(c, 1), k%ly, k%il0(2), &
-                     v%y(c), v%x(c), v%li(c), v%st(c), n_far)
+                     near, v%y(c), v%x(c), v%li(c), v%st(c), n)
     end do
-    if (n_far == 0) return
+    n_out(3) = n
+    if (n == 0) return
     do c = 0, m
       call edge_far(top%u(c, 2) - bot%u(c, 2), top%u(c, 1) - bot%u(c, 1), k%ly, k%il0(2), &
                     v%y(c), v%x(c), v%li(c), v%st(c))
@@ -61,19 +65,20 @@ contains
   end subroutine chunk_edges
 
   !> The horizontal edges 1..m of a node row of displacements u(0:m, 2): unit vector (x, y),
-  !> inverse length li and strain st of each.
-  pure subroutine row_edges(k, m, u, x, y, li, st)
+  !> inverse length li and strain st of each; n_out of them past near (edge_limit).
+  pure subroutine row_edges(k, m, near, u, x, y, li, st, n_out)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
-    real(wp), intent(in) :: u(0:chunk, 2)
+    real(wp), intent(in) :: near, u(0:chunk, 2)
     real(wp), intent(inout) :: x(chunk), y(chunk), li(chunk), st(chunk)
-    integer :: c, n_far
-    n_far = 0
+    integer, intent(out) :: n_out
+    integer :: c
+    n_out = 0
     do c = 1, m
-      call edge_near(u(c, 1) - u(c - 1, 1), u(c, 2) - u(c - 1, 2), k%lx, k%il0(1), x(c), y(c), &
-                     li(c), st(c), n_far)
+      call edge_near(u(c, 1) - u(c - 1, 1), u(c, 2) - u(c - 1, 2), k%lx, k%il0(1), near, x(c), &
+                     y(c), li(c), st(c), n_out)
     end do
-    if (n_far == 0) return
+    if (n_out == 0) return
     do c = 1, m
       call edge_far(u(c, 1) - u(c - 1, 1), u(c, 2) - u(c - 1, 2), k%lx, k%il0(1), x(c), y(c), &
                     li(c), st(c))
@@ -89,18 +94,33 @@ contains
     real(wp), intent(out) :: a, b, li, st
     integer :: n_far
     n_far = 0
-    call edge_near(par, perp, l0, il0, a, b, li, st, n_far)
+    call edge_near(par, perp, l0, il0, near_limit, a, b, li, st, n_far)
     if (n_far > 0) call edge_far(par, perp, l0, il0, a, b, li, st)
   end subroutine edge_measure
 
+  !> The largest |(l/l0)^2 - 1| of an edge that edge_near measures (near_limit) and whose
+  !> strain st has passed neither a tension onset on_t (st > on_t) nor a crushing onset on_c
+  !> (-st > on_c), whatever the round-off: a relative margin of 1e-6 inside the onsets (a
+  !> huge onset sets no limit). One limit for both signs (an edge stretched or shortened by
+  !> less than the nearer onset), so that the edges' count costs no more than without them.
+  pure real(wp) function edge_limit(on_t, on_c) result(near)
+    real(wp), intent(in) :: on_t, on_c
+    real(wp), parameter :: margin = 1.0e-6_wp
+    near = near_limit
+    ! st > on_t where (l/l0)^2 - 1 > (1 + on_t)^2 - 1
+    if (on_t < 1.0_wp) near = min(near, max(on_t*(2.0_wp + on_t), 0.0_wp)*(1.0_wp - margin))
+    ! -st > on_c where (l/l0)^2 - 1 < (1 - on_c)^2 - 1 (never for on_c >= 1)
+    if (on_c < 1.0_wp) near = min(near, max(on_c*(2.0_wp - on_c), 0.0_wp)*(1.0_wp - margin))
+  end function edge_limit
+
   !> edge_measure's values of an edge whose squared stretch differs from 1 by at most
-  !> near_limit (strains within about +-3%), by multiplications alone; n_far counts the
-  !> other edges (for edge_far; their values here are not used). docs/model.md, "Edge
-  !> measures", gives the accuracy.
-  elemental subroutine edge_near(par, perp, l0, il0, a, b, li, st, n_far)
-    real(wp), intent(in) :: par, perp, l0, il0
+  !> near_limit (strains within about +-3%), by multiplications alone; n_out counts the
+  !> edges whose |(l/l0)^2 - 1| passes near (<= near_limit: among them those for edge_far,
+  !> whose values here are not used). docs/model.md, "Edge measures", gives the accuracy.
+  elemental subroutine edge_near(par, perp, l0, il0, near, a, b, li, st, n_out)
+    real(wp), intent(in) :: par, perp, l0, il0, near
     real(wp), intent(out) :: a, b, li, st
-    integer, intent(inout) :: n_far
+    integer, intent(inout) :: n_out
     real(wp) :: d, h, e
     ! d = (l/l0)^2 - 1, without the cancellation of l^2 - l0^2
     d = (par*(2.0_wp*l0 + par) + perp*perp)*(il0*il0)
@@ -115,7 +135,7 @@ contains
     b = perp*li
     ! sqrt(1 + d) - 1 = (1 + d) r - 1
     st = d + h*(1.0_wp + d)
-    n_far = n_far + merge(1, 0, abs(d) > near_limit)
+    n_out = n_out + merge(1, 0, abs(d) > near)
   end subroutine edge_near
 
   !> edge_measure's values of an edge past edge_near's range (those within it left as they

@@ -2,8 +2,9 @@
 !> cell's strains, law, damping stresses and corner forces in one branch-free loop over the
 !> chunk that keeps every intermediate in registers. The loop body lives in
 !> elastic_loop/*.inc, shared by the variants here: what each keeps besides the forces
-!> (energies and strains, or fracture's onset count), a law per cell with damping stresses or
-!> one law without (_plain), and the paper's cell without its law's zero terms (_paper).
+!> (energies and strains, or fracture's onset count: of every criterion (_lean) or of shear
+!> alone (_shear)), a law per cell with damping stresses or one law without (_plain), and the
+!> paper's cell without its law's zero terms (_paper).
 module iem_cell_elastic
   use iem_kinds, only: wp, i8
   use iem_spring_constants, only: cell_constants_t
@@ -13,7 +14,8 @@ module iem_cell_elastic
   private
   public :: chunk_elastic, chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_paper, &
             chunk_elastic_plain_energy, chunk_elastic_plain_lean, chunk_elastic_paper_lean, &
-            chunk_elastic_lean
+            chunk_elastic_lean, chunk_elastic_shear, chunk_elastic_plain_shear, &
+            chunk_elastic_paper_shear
 
 contains
 
@@ -206,4 +208,74 @@ contains
       include 'elastic_loop/iem_cell_elastic_forces.inc'
     end do
   end subroutine chunk_elastic_lean
+
+  !> chunk_elastic_lean counting the shear criterion alone (n_past not 0 when a cell has
+  !> |s| > on_s): for a chunk whose edges chunk_edges found clear of the other onsets.
+  pure subroutine chunk_elastic_shear(k, m, bot, top, v, lc, hd, ud, on_s, fx, fy, n_past)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4), on_s
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
+    integer(i8), intent(out) :: n_past
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
+
+    ilx = k%il0(1)
+    ily = k%il0(2)
+    n_past = 0
+    do c = 1, m
+      include 'elastic_loop/iem_cell_elastic_cell_law.inc'
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law.inc'
+      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
+      include 'elastic_loop/iem_cell_elastic_damped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
+    end do
+  end subroutine chunk_elastic_shear
+
+  !> chunk_elastic_shear for cells of one law (coefficients lc1) without damping.
+  pure subroutine chunk_elastic_plain_shear(k, m, bot, top, v, lc1, on_s, fx, fy, n_past)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    real(wp), intent(in) :: lc1(5), on_s
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
+    integer(i8), intent(out) :: n_past
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
+
+    include 'elastic_loop/iem_cell_elastic_one_law.inc'
+    n_past = 0
+    do c = 1, m
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law.inc'
+      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
+      include 'elastic_loop/iem_cell_elastic_undamped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
+    end do
+  end subroutine chunk_elastic_plain_shear
+
+  !> chunk_elastic_plain_shear for the paper's cell (lc1(3) = lc1(5) = 0), as
+  !> chunk_elastic_paper: the same forces and count.
+  pure subroutine chunk_elastic_paper_shear(k, m, bot, top, v, lc1, on_s, fx, fy, n_past)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    real(wp), intent(in) :: lc1(5), on_s
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
+    integer(i8), intent(out) :: n_past
+    include 'elastic_loop/iem_cell_elastic_locals.inc'
+
+    include 'elastic_loop/iem_cell_elastic_one_law.inc'
+    n_past = 0
+    do c = 1, m
+      include 'elastic_loop/iem_cell_elastic_strains.inc'
+      include 'elastic_loop/iem_cell_elastic_law_paper.inc'
+      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
+      include 'elastic_loop/iem_cell_elastic_undamped.inc'
+      include 'elastic_loop/iem_cell_elastic_forces.inc'
+    end do
+  end subroutine chunk_elastic_paper_shear
 end module iem_cell_elastic

@@ -13,12 +13,13 @@ module iem_cell_kernel
   use iem_spring_constants, only: cell_constants_t
   use iem_nonlinear_springs, only: nonlinear_springs_t
   use iem_cell_laws, only: chunk
-  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, edge_measure, chunk_general, &
-                            law_coefficients, damping_stresses
+  use iem_cell_chunk, only: edge_row_t, edge_col_t, chunk_edges, edge_measure, edge_limit, &
+                            chunk_general, law_coefficients, damping_stresses
   use iem_cell_elastic, only: chunk_elastic, chunk_elastic_forces, chunk_elastic_plain, &
                               chunk_elastic_paper, chunk_elastic_plain_energy, &
                               chunk_elastic_plain_lean, chunk_elastic_paper_lean, &
-                              chunk_elastic_lean
+                              chunk_elastic_lean, chunk_elastic_shear, &
+                              chunk_elastic_plain_shear, chunk_elastic_paper_shear
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
   use iem_prefetch, only: prefetch
@@ -37,9 +38,10 @@ module iem_cell_kernel
   !> Which node rows the kernel's slots hold, kept between calls that go on with the sweep
   !> of one table (cell_forces' chunks and slots, with the same rows).
   type :: kernel_slots_t
-    !> Each slot's first node (-1: free) and number of edges; the next slot to take, and the
-    !> slot freed by the last chunk (0: none).
-    integer :: node(kernel_slots) = -1, m(kernel_slots) = 0, next = 1, spare = 0
+    !> Each slot's first node (-1: free), number of edges and of edges past chunk_edges' limit;
+    !> the next slot to take, and the slot freed by the last chunk (0: none).
+    integer :: node(kernel_slots) = -1, m(kernel_slots) = 0, out(kernel_slots) = 0
+    integer :: next = 1, spare = 0
   end type kernel_slots_t
 
 contains
@@ -167,6 +169,9 @@ contains
     type(edge_row_t), pointer :: rp(:)
     type(edge_col_t) :: v
     integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, spare, hit, j, ib, it
+    ! each row's edges past chunk_edges' limit (slots, then the two other rows), and the
+    ! chunk's: bottom row, top row, vertical edges
+    integer :: slot_out(kernel_slots + 2), n_out(3)
     ! the chunk's cells' law coefficients and damping stresses, corner forces, energies,
     ! powers, strains, and those of the general path (fracture: only its damaged cells taken)
     real(wp) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4)
@@ -176,8 +181,8 @@ contains
     integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0, ic_first, ic_last
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
     logical :: keep_terms
-    logical :: lean, intact, paper
-    real(wp) :: onset(3), lc1(5)
+    logical :: lean, intact, paper, quiet, clear, shear_onset
+    real(wp) :: onset(3), lc1(5), near
     integer(i8) :: n_past
 
     nc = cells%n_cells
@@ -214,6 +219,9 @@ contains
     lean = .not. (sums .or. keep_energy .or. keep_terms)
     onset = huge(1.0_wp)
     if (present(fr)) onset = fr%onset_min
+    ! the edges' limit: the series' range, and with fracture a little inside its onsets
+    near = edge_limit(onset(1), onset(2))
+    shear_onset = onset(3) < huge(1.0_wp)
     if (present(add)) then
       if (.not. add) f = 0.0_wp
     else
@@ -229,12 +237,14 @@ contains
     end if
     slot_node = -1
     slot_m = 0
+    slot_out = 0
     next_slot = 1
     spare = 0
     if (present(slots) .and. present(rows) .and. present(chunks)) then
       if (chunks(1) > 1) then
         slot_node = slots%node
         slot_m = slots%m
+        slot_out(1:kernel_slots) = slots%out
         next_slot = slots%next
         spare = slots%spare
       end if
@@ -295,7 +305,10 @@ contains
         if (filtered) call gather_rows(y, 3, m, bn, tn, bp, tp)
       end if
       associate(bot => rp(ib), top => rp(it))
-      call chunk_edges(k, m, bot, top, hit == 0, v)
+      ! the bottom row's count as measured (a slot's: as the top row of the chunk below)
+      n_out(1) = slot_out(ib)
+      call chunk_edges(k, m, bot, top, hit == 0, near, v, n_out)
+      slot_out(it) = n_out(2)
       if (present(nl)) then
         if (by_material) then
           call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, fy, &
@@ -318,18 +331,35 @@ contains
         else if (damped) then
           call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bw, tw, hd, ud, pw)
         end if
-        if (lean .and. .not. (present(fr) .or. damped .or. by_material)) then
-          if (paper) then
+        ! with fracture, a chunk's edges are clear when none has come near a tension or
+        ! crushing onset (edge_limit); it is quiet when they are and no material has a shear
+        ! onset: no cell of it can pass one
+        clear = sum(n_out) == 0
+        quiet = .true.
+        if (present(fr)) quiet = clear .and. .not. shear_onset
+        if (lean .and. quiet) then
+          if (damped .or. by_material) then
+            call chunk_elastic_forces(k, m, bot, top, v, lc, hd, ud, fx, fy)
+          else if (paper) then
             call chunk_elastic_paper(k, m, bot, top, v, lc1, fx, fy)
           else
             call chunk_elastic_plain(k, m, bot, top, v, lc1, fx, fy)
           end if
           intact = .true.
-        else if (lean .and. .not. present(fr)) then
-          call chunk_elastic_forces(k, m, bot, top, v, lc, hd, ud, fx, fy)
-          intact = .true.
+          if (present(fr)) intact = chunk_unhit(fr, c0, m)
+        else if (lean .and. clear) then
+          ! without energies, the edges clear: the shear onset test in the same loop
+          if (damped .or. by_material) then
+            call chunk_elastic_shear(k, m, bot, top, v, lc, hd, ud, onset(3), fx, fy, n_past)
+          else if (paper) then
+            call chunk_elastic_paper_shear(k, m, bot, top, v, lc1, onset(3), fx, fy, n_past)
+          else
+            call chunk_elastic_plain_shear(k, m, bot, top, v, lc1, onset(3), fx, fy, n_past)
+          end if
+          intact = n_past == 0
+          if (intact) intact = chunk_unhit(fr, c0, m)
         else if (lean) then
-          ! without energies: the onset test counted in the same loop
+          ! without energies: the onset test of every criterion counted in the same loop
           if (damped .or. by_material) then
             call chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, onset, fx, fy, n_past)
           else if (paper) then
@@ -412,6 +442,7 @@ contains
     if (present(slots)) then
       slots%node = slot_node
       slots%m = slot_m
+      slots%out = slot_out(1:kernel_slots)
       slots%next = next_slot
       slots%spare = spare
     end if
