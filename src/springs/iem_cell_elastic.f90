@@ -15,9 +15,47 @@ module iem_cell_elastic
   public :: chunk_elastic, chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_paper, &
             chunk_elastic_plain_energy, chunk_elastic_plain_lean, chunk_elastic_paper_lean, &
             chunk_elastic_lean, chunk_elastic_shear, chunk_elastic_plain_shear, &
-            chunk_elastic_paper_shear
+            chunk_elastic_paper_shear, chunk_elastic_tested
+  public :: onsets_none, onsets_shear, onsets_all
+
+  !> Which of fracture's onsets a chunk's elastic loop counts: none (the loops without a
+  !> test), the shear onset alone, every criterion's (chunk_elastic_tested's two).
+  integer, parameter :: onsets_none = 0, onsets_shear = 1, onsets_all = 2
 
 contains
+
+  !> The corner forces fx, fy of a chunk's elastic cells without their energies, in the loop
+  !> that counts in n_past the cells past the onsets on(3) of test (onsets_shear: on(3)
+  !> alone; onsets_all: every criterion): with a law per cell lc and damping stresses hd, ud
+  !> (general), else of one law lc1 (paper: the paper's cell).
+  pure subroutine chunk_elastic_tested(k, m, bot, top, v, general, paper, lc, hd, ud, lc1, &
+                                       test, on, fx, fy, n_past)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m, test
+    type(edge_row_t), intent(in) :: bot, top
+    type(edge_col_t), intent(in) :: v
+    logical, intent(in) :: general, paper
+    real(wp), intent(in) :: lc(chunk, 5), hd(chunk, 4), ud(chunk, 4), lc1(5), on(3)
+    real(wp), intent(out) :: fx(chunk, 4), fy(chunk, 4)
+    integer(i8), intent(out) :: n_past
+    if (test == onsets_shear) then
+      if (general) then
+        call chunk_elastic_shear(k, m, bot, top, v, lc, hd, ud, on(3), fx, fy, n_past)
+      else if (paper) then
+        call chunk_elastic_paper_shear(k, m, bot, top, v, lc1, on(3), fx, fy, n_past)
+      else
+        call chunk_elastic_plain_shear(k, m, bot, top, v, lc1, on(3), fx, fy, n_past)
+      end if
+    else
+      if (general) then
+        call chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, on, fx, fy, n_past)
+      else if (paper) then
+        call chunk_elastic_paper_lean(k, m, bot, top, v, lc1, on, fx, fy, n_past)
+      else
+        call chunk_elastic_plain_lean(k, m, bot, top, v, lc1, on, fx, fy, n_past)
+      end if
+    end if
+  end subroutine chunk_elastic_tested
 
   !> The elastic cells of a chunk in one loop: per cell its shear measures, its law (the
   !> coefficients lc(cell, :) of law_coefficients), the damping stresses hd, ud (0 when not

@@ -17,9 +17,7 @@ module iem_cell_kernel
                             chunk_general, law_coefficients, damping_stresses
   use iem_cell_elastic, only: chunk_elastic, chunk_elastic_forces, chunk_elastic_plain, &
                               chunk_elastic_paper, chunk_elastic_plain_energy, &
-                              chunk_elastic_plain_lean, chunk_elastic_paper_lean, &
-                              chunk_elastic_lean, chunk_elastic_shear, &
-                              chunk_elastic_plain_shear, chunk_elastic_paper_shear
+                              chunk_elastic_tested, onsets_none, onsets_shear, onsets_all
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
   use iem_prefetch, only: prefetch
@@ -178,10 +176,10 @@ contains
     real(wp) :: fx(chunk, 4), fy(chunk, 4), en(chunk), pw(chunk), ep(chunk, 4), s(chunk, 4)
     real(wp) :: gx(chunk, 4), gy(chunk, 4), gen(chunk), gpw(chunk)
     logical :: dmg(chunk), counted(chunk)
-    integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0, ic_first, ic_last
+    integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0, ic_first, ic_last, test
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
     logical :: keep_terms
-    logical :: lean, intact, paper, quiet, clear, shear_onset
+    logical :: lean, intact, paper, shear_onset
     real(wp) :: onset(3), lc1(5), near
     integer(i8) :: n_past
 
@@ -331,13 +329,13 @@ contains
         else if (damped) then
           call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bw, tw, hd, ud, pw)
         end if
-        ! with fracture, a chunk's edges are clear when none has come near a tension or
-        ! crushing onset (edge_limit); it is quiet when they are and no material has a shear
-        ! onset: no cell of it can pass one
-        clear = sum(n_out) == 0
-        quiet = .true.
-        if (present(fr)) quiet = clear .and. .not. shear_onset
-        if (lean .and. quiet) then
+        ! with fracture, the onset test a chunk needs: none when no edge has come near a
+        ! tension or crushing onset (edge_limit) and no material has a shear onset (no cell
+        ! can pass one), the shear onset's alone when only that, else every criterion's
+        test = onsets_none
+        if (present(fr)) test = merge(onsets_all, merge(onsets_shear, onsets_none, shear_onset), &
+                                      sum(n_out) > 0)
+        if (lean .and. test == onsets_none) then
           if (damped .or. by_material) then
             call chunk_elastic_forces(k, m, bot, top, v, lc, hd, ud, fx, fy)
           else if (paper) then
@@ -347,26 +345,10 @@ contains
           end if
           intact = .true.
           if (present(fr)) intact = chunk_unhit(fr, c0, m)
-        else if (lean .and. clear) then
-          ! without energies, the edges clear: the shear onset test in the same loop
-          if (damped .or. by_material) then
-            call chunk_elastic_shear(k, m, bot, top, v, lc, hd, ud, onset(3), fx, fy, n_past)
-          else if (paper) then
-            call chunk_elastic_paper_shear(k, m, bot, top, v, lc1, onset(3), fx, fy, n_past)
-          else
-            call chunk_elastic_plain_shear(k, m, bot, top, v, lc1, onset(3), fx, fy, n_past)
-          end if
-          intact = n_past == 0
-          if (intact) intact = chunk_unhit(fr, c0, m)
         else if (lean) then
-          ! without energies: the onset test of every criterion counted in the same loop
-          if (damped .or. by_material) then
-            call chunk_elastic_lean(k, m, bot, top, v, lc, hd, ud, onset, fx, fy, n_past)
-          else if (paper) then
-            call chunk_elastic_paper_lean(k, m, bot, top, v, lc1, onset, fx, fy, n_past)
-          else
-            call chunk_elastic_plain_lean(k, m, bot, top, v, lc1, onset, fx, fy, n_past)
-          end if
+          ! without energies: the test counted in the same loop
+          call chunk_elastic_tested(k, m, bot, top, v, damped .or. by_material, paper, lc, hd, &
+                                    ud, lc1, test, onset, fx, fy, n_past)
           intact = n_past == 0
           if (intact) intact = chunk_unhit(fr, c0, m)
         else
