@@ -266,9 +266,9 @@ contains
       include 'elastic_loop/iem_cell_elastic_cell_law.inc'
       include 'elastic_loop/iem_cell_elastic_strains.inc'
       include 'elastic_loop/iem_cell_elastic_law.inc'
-      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
       include 'elastic_loop/iem_cell_elastic_damped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
     end do
   end subroutine chunk_elastic_shear
 
@@ -288,9 +288,9 @@ contains
     do c = 1, m
       include 'elastic_loop/iem_cell_elastic_strains.inc'
       include 'elastic_loop/iem_cell_elastic_law.inc'
-      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
       include 'elastic_loop/iem_cell_elastic_undamped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
     end do
   end subroutine chunk_elastic_plain_shear
 
@@ -311,9 +311,9 @@ contains
     do c = 1, m
       include 'elastic_loop/iem_cell_elastic_strains.inc'
       include 'elastic_loop/iem_cell_elastic_law_paper.inc'
-      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
       include 'elastic_loop/iem_cell_elastic_undamped.inc'
       include 'elastic_loop/iem_cell_elastic_forces.inc'
+      include 'elastic_loop/iem_cell_elastic_shear_onset.inc'
     end do
   end subroutine chunk_elastic_paper_shear
 end module iem_cell_elastic
