@@ -33,8 +33,9 @@ about N nodes, plane stress, paper's cell, edge load, at about 0.9 of the stable
 Definitions (from iem's end-of-run report: node-steps, the time loop's wall time, the share
 of that time in each part, the peak resident memory VmHWM of every rank):
 - node-steps/s: iem's node-steps over the time loop's wall time less its share in output
-  (the frames at t = 0 and t_end and the history samples: the two frames weigh twice as
-  much in the 100-step runs of 1e6 nodes as in the 200-step runs of 1e5);
+  (the frames at t = 0 and t_end, with the buffered history, and a fracture run's fragment
+  counts at its history samples: the two frames weigh twice as much in the 100-step runs of
+  1e6 nodes as in the 200-step runs of 1e5);
 - force (cells/s of the force alone) = force evaluations in the time loop x cells / time in
   force evaluation (its share of the loop's wall time); RK4 evaluates 4 times a step; cells
   of the block = nx*ny; measured on the RK4 block of 1e5 nodes;

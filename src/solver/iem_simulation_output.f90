@@ -226,8 +226,11 @@ contains
     n_failed = nint(this%sample(size(this%sample)))
     call this%events%gather(this%comm, n_failed)
     if (n_failed > 0 .or. .not. this%frag_valid) then
+      ! made for the history's fragment series alone: output's time
+      call timer_start(t_output)
       call this%frag%count(this%lat, this%halo, this%comm, this%model%fr, this%n_frag, &
                            this%frag_sizes)
+      call timer_stop(t_output)
       this%frag_valid = .true.
     end if
     this%h_frag(b) = this%n_frag
