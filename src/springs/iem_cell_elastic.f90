@@ -14,8 +14,7 @@ module iem_cell_elastic
   private
   public :: chunk_elastic, chunk_elastic_forces, chunk_elastic_plain, chunk_elastic_paper, &
             chunk_elastic_plain_energy, chunk_elastic_plain_lean, chunk_elastic_paper_lean, &
-            chunk_elastic_lean, chunk_elastic_shear, chunk_elastic_plain_shear, &
-            chunk_elastic_paper_shear, chunk_elastic_tested
+            chunk_elastic_lean, chunk_elastic_tested
   public :: onsets_none, onsets_shear, onsets_all
 
   !> Which of fracture's onsets a chunk's elastic loop counts: none (the loops without a
