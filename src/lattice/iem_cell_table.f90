@@ -42,7 +42,7 @@ contains
   !> corners of the chunks whose node rows are not consecutive.
   pure function cell_table(cell_nodes, kind) result(t)
     integer, intent(in) :: cell_nodes(:, :)
-    logical, intent(in), optional :: kind(:)
+    integer, intent(in), optional :: kind(:)
     type(cell_table_t) :: t
     integer, allocatable :: plan(:, :)
     integer :: j, n, c0, m
@@ -75,7 +75,7 @@ contains
   !> changes.
   pure function cell_chunks(cell_nodes, kind) result(plan)
     integer, intent(in) :: cell_nodes(:, :)
-    logical, intent(in), optional :: kind(:)
+    integer, intent(in), optional :: kind(:)
     integer, allocatable :: plan(:, :)
     integer :: nc, c0, m, n, pass
     nc = size(cell_nodes, 2)
@@ -89,7 +89,7 @@ contains
           if (cell_nodes(1, c0 + m) /= cell_nodes(2, c0 + m - 1) .or. &
               cell_nodes(4, c0 + m) /= cell_nodes(3, c0 + m - 1)) exit
           if (present(kind)) then
-            if (kind(c0 + m) .neqv. kind(c0)) exit
+            if (kind(c0 + m) /= kind(c0)) exit
           end if
           m = m + 1
         end do

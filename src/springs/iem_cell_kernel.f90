@@ -20,7 +20,7 @@ module iem_cell_kernel
                               chunk_elastic_tested, onsets_none, onsets_shear, onsets_all
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
-  use iem_prefetch, only: prefetch
+  use iem_prefetch, only: prefetch, prefetch_from_nodes
   use iem_exact_sum, only: exact_sum_t
   use iem_cell_table, only: cell_table_t, cell_table
   use iem_kernel_simd, only: kernel_simd, c_gather_row4, c_scatter_rows
@@ -255,8 +255,8 @@ contains
     end if
     do ic = ic_first, ic_last
       call chunk_of(ic, c0, m, consec, b0, t0)
-      ! the next chunk's top node row (values and forces) into the caches meanwhile
-      if (ic < n_chunks()) call prefetch_chunk(ic + 1)
+      ! the next chunk's top node row (values and forces) into the caches, on large ranks
+      if (ic < n_chunks() .and. size(y, 2) >= prefetch_from_nodes) call prefetch_chunk(ic + 1)
       ! the chunk's bottom and top rows: a consecutive chunk's bottom row is the slot of the
       ! chunk below when that chunk's top row is this row; its top row goes to a free slot
       ib = kernel_slots + 1

@@ -6,6 +6,8 @@
 !> boundary cell (a node of D) gets each of its cells' corner forces in a side slot of its
 !> own, ordered by cell, and the slots are summed in that order after both phases; every
 !> other node has interior cells only, whose forces are added to it in cell order as before.
+!> Only the chunks of cells with a corner in D are routed (corner by corner): the interior cells
+!> that have one form chunks of their own, so the others keep the kernel's plain path.
 module iem_cell_split
   use iem_kinds, only: wp, i8
   use iem_sort, only: sort_i8
@@ -45,8 +47,8 @@ contains
     class(cell_split_t), intent(inout) :: this
     type(cell_table_t), intent(in) :: cells
     integer, intent(in) :: n_owned, n_local
-    logical, allocatable :: bd(:), is_bd(:)
-    integer, allocatable :: plan(:, :), cnt(:), cell_nodes(:, :)
+    logical, allocatable :: bd(:), is_bd(:), near(:)
+    integer, allocatable :: plan(:, :), cnt(:), cell_nodes(:, :), kind(:)
     type(cell_table_t) :: split
     integer(i8), allocatable :: dl(:)
     integer :: nc, c, q, j, k, n, nd, na, n_in, n_bd, n_route, at, c0, m, d
@@ -93,8 +95,15 @@ contains
     this%d_node = int(dl(1:nd))
     this%d_cells = 0
     this%side = 0.0_wp
-    ! the chunks, of one kind each, in cell order; the routed ones touch D
-    split = cell_table(cell_nodes, bd)
+    ! the chunks, of one kind each, in cell order: interior cells with no corner in D, those
+    ! with one (routed), boundary cells (routed); so a routed chunk holds only cells that
+    ! touch D, and the others keep the kernel's plain path
+    allocate(near(nc), kind(nc))
+    do c = 1, nc
+      near(c) = touches(c)
+    end do
+    kind = merge(2, merge(1, 0, near), bd)
+    split = cell_table(cell_nodes, kind)
     plan = split%chunks
     n_in = 0
     n_bd = 0
@@ -107,7 +116,7 @@ contains
       else
         n_in = n_in + 1
       end if
-      if (touches(c0, m)) n_route = n_route + 4*m
+      if (near(c0)) n_route = n_route + 4*m
     end do
     allocate(this%at_in(n_in), this%at_bd(n_bd), this%route(n_route), cnt(nd), &
              is_bd(size(plan, 2)))
@@ -118,7 +127,7 @@ contains
     do j = 1, size(plan, 2)
       c0 = plan(1, j)
       m = plan(2, j)
-      touch = touches(c0, m)
+      touch = near(c0)
       if (touch) then
         ! cells in ascending order, so each node's slots come in cell order
         do c = c0, c0 + m - 1
@@ -171,18 +180,16 @@ contains
       end do
     end function find
 
-    !> Whether one of the cells c0..c0+m-1 has a corner in D.
-    pure logical function touches(c0_, m_)
-      integer, intent(in) :: c0_, m_
-      integer :: cc, qq
+    !> Whether cell c has a corner in D.
+    pure logical function touches(c)
+      integer, intent(in) :: c
+      integer :: qq
       touches = .false.
-      do cc = c0_, c0_ + m_ - 1
-        do qq = 1, 4
-          if (find(cell_nodes(qq, cc)) > 0) then
-            touches = .true.
-            return
-          end if
-        end do
+      do qq = 1, 4
+        if (find(cell_nodes(qq, c)) > 0) then
+          touches = .true.
+          return
+        end if
       end do
     end function touches
   end subroutine split_init

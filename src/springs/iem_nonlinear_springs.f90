@@ -305,10 +305,19 @@ contains
     integer, intent(in) :: n
     real(wp), intent(in) :: mv(n), v
     integer, intent(out) :: list(n), n_of
-    integer :: k
-    ! without a branch: each k is written, and kept when of such a kind
+    ! groups of four moves: most groups have none (a test of their largest kind), the others
+    ! are listed without a branch (each k written, kept when of such a kind)
+    integer, parameter :: group = 4
+    integer :: k, k0
     n_of = 0
-    do k = 1, n
+    do k0 = 0, n - group, group
+      if (max(max(mv(k0 + 1), mv(k0 + 2)), max(mv(k0 + 3), mv(k0 + 4))) < v) cycle
+      do k = k0 + 1, k0 + group
+        list(n_of + 1) = k
+        n_of = n_of + merge(1, 0, mv(k) >= v)
+      end do
+    end do
+    do k = group*(n/group) + 1, n
       list(n_of + 1) = k
       n_of = n_of + merge(1, 0, mv(k) >= v)
     end do
