@@ -47,16 +47,28 @@ contains
     real(wp), intent(in) :: near
     type(edge_col_t), intent(out) :: v
     integer, intent(inout) :: n_out(3)
-    integer :: c, n
+    integer :: c, n, nt
     if (bottom) call row_edges(k, m, near, bot%u, bot%x, bot%y, bot%li, bot%st, n_out(1))
-    call row_edges(k, m, near, top%u, top%x, top%y, top%li, top%st, n_out(2))
+    ! the top row's edges and the vertical ones in one loop (the top row's nodes read once);
     ! a vertical edge: along it the y displacements, across it the x ones
     n = 0
-    do c = 0, m
+    nt = 0
+    call edge_near(top%u(0, 2) - bot%u(0, 2), top%u(0, 1) - bot%u(0, 1), k%ly, k%il0(2), &
+                   near, v%y(0), v%x(0), v%li(0), v%st(0), n)
+    do c = 1, m
+      call edge_near(top%u(c, 1) - top%u(c - 1, 1), top%u(c, 2) - top%u(c - 1, 2), k%lx, &
+                     k%il0(1), near, top%x(c), top%y(c), top%li(c), top%st(c), nt)
       call edge_near(top%u(c, 2) - bot%u(c, 2), top%u(c, 1) - bot%u(c, 1), k%ly, k%il0(2), &
                      near, v%y(c), v%x(c), v%li(c), v%st(c), n)
     end do
+    n_out(2) = nt
     n_out(3) = n
+    if (nt > 0) then
+      do c = 1, m
+        call edge_far(top%u(c, 1) - top%u(c - 1, 1), top%u(c, 2) - top%u(c - 1, 2), k%lx, &
+                      k%il0(1), top%x(c), top%y(c), top%li(c), top%st(c))
+      end do
+    end if
     if (n == 0) return
     do c = 0, m
       call edge_far(top%u(c, 2) - bot%u(c, 2), top%u(c, 1) - bot%u(c, 1), k%ly, k%il0(2), &
