@@ -47,19 +47,44 @@ contains
     real(wp), intent(in) :: near
     type(edge_col_t), intent(out) :: v
     integer, intent(inout) :: n_out(3)
-    integer :: c, n, nt
+    ! (edge_loop/iem_edge_near.inc's variables)
+    real(wp) :: par, perp, l0, il0, d, h, e, a, b, li, st
+    integer :: c, n, nt, past
     if (bottom) call row_edges(k, m, near, bot%u, bot%x, bot%y, bot%li, bot%st, n_out(1))
-    ! the top row's edges and the vertical ones in one loop (the top row's nodes read once);
     ! a vertical edge: along it the y displacements, across it the x ones
-    n = 0
+    par = top%u(0, 2) - bot%u(0, 2)
+    perp = top%u(0, 1) - bot%u(0, 1)
+    l0 = k%ly
+    il0 = k%il0(2)
+    include 'edge_loop/iem_edge_near.inc'
+    v%y(0) = a
+    v%x(0) = b
+    v%li(0) = li
+    v%st(0) = st
+    n = past
+    ! the top row's edges and the vertical ones in one loop (the top row's nodes read once)
     nt = 0
-    call edge_near(top%u(0, 2) - bot%u(0, 2), top%u(0, 1) - bot%u(0, 1), k%ly, k%il0(2), &
-                   near, v%y(0), v%x(0), v%li(0), v%st(0), n)
     do c = 1, m
-      call edge_near(top%u(c, 1) - top%u(c - 1, 1), top%u(c, 2) - top%u(c - 1, 2), k%lx, &
-                     k%il0(1), near, top%x(c), top%y(c), top%li(c), top%st(c), nt)
-      call edge_near(top%u(c, 2) - bot%u(c, 2), top%u(c, 1) - bot%u(c, 1), k%ly, k%il0(2), &
-                     near, v%y(c), v%x(c), v%li(c), v%st(c), n)
+      par = top%u(c, 1) - top%u(c - 1, 1)
+      perp = top%u(c, 2) - top%u(c - 1, 2)
+      l0 = k%lx
+      il0 = k%il0(1)
+      include 'edge_loop/iem_edge_near.inc'
+      top%x(c) = a
+      top%y(c) = b
+      top%li(c) = li
+      top%st(c) = st
+      nt = nt + past
+      par = top%u(c, 2) - bot%u(c, 2)
+      perp = top%u(c, 1) - bot%u(c, 1)
+      l0 = k%ly
+      il0 = k%il0(2)
+      include 'edge_loop/iem_edge_near.inc'
+      v%y(c) = a
+      v%x(c) = b
+      v%li(c) = li
+      v%st(c) = st
+      n = n + past
     end do
     n_out(2) = nt
     n_out(3) = n
@@ -77,23 +102,33 @@ contains
   end subroutine chunk_edges
 
   !> The horizontal edges 1..m of a node row of displacements u(0:m, 2): unit vector (x, y),
-  !> inverse length li and strain st of each; n_out of them past near (edge_limit).
-  pure subroutine row_edges(k, m, near, u, x, y, li, st, n_out)
+  !> inverse length ri and strain rs of each; n_out of them past near (edge_limit).
+  pure subroutine row_edges(k, m, near, u, x, y, ri, rs, n_out)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     real(wp), intent(in) :: near, u(0:chunk, 2)
-    real(wp), intent(inout) :: x(chunk), y(chunk), li(chunk), st(chunk)
+    real(wp), intent(inout) :: x(chunk), y(chunk), ri(chunk), rs(chunk)
     integer, intent(out) :: n_out
-    integer :: c
+    ! (edge_loop/iem_edge_near.inc's variables)
+    real(wp) :: par, perp, l0, il0, d, h, e, a, b, li, st
+    integer :: c, past
     n_out = 0
+    l0 = k%lx
+    il0 = k%il0(1)
     do c = 1, m
-      call edge_near(u(c, 1) - u(c - 1, 1), u(c, 2) - u(c - 1, 2), k%lx, k%il0(1), near, x(c), &
-                     y(c), li(c), st(c), n_out)
+      par = u(c, 1) - u(c - 1, 1)
+      perp = u(c, 2) - u(c - 1, 2)
+      include 'edge_loop/iem_edge_near.inc'
+      x(c) = a
+      y(c) = b
+      ri(c) = li
+      rs(c) = st
+      n_out = n_out + past
     end do
     if (n_out == 0) return
     do c = 1, m
       call edge_far(u(c, 1) - u(c - 1, 1), u(c, 2) - u(c - 1, 2), k%lx, k%il0(1), x(c), y(c), &
-                    li(c), st(c))
+                    ri(c), rs(c))
     end do
   end subroutine row_edges
 
@@ -134,20 +169,9 @@ contains
     real(wp), intent(out) :: a, b, li, st
     integer, intent(inout) :: n_out
     real(wp) :: d, h, e
-    ! d = (l/l0)^2 - 1, without the cancellation of l^2 - l0^2
-    d = (par*(2.0_wp*l0 + par) + perp*perp)*(il0*il0)
-    ! h = (1 + d)^(-1/2) - 1: its series to d^6 (error below 0.21 |d|^7), then one Newton step
-    ! for r = 1 + h written in small quantities (error below 0.07 d^14 + round-off)
-    h = d*(-0.5_wp + d*(0.375_wp + d*(-0.3125_wp + d*(0.2734375_wp + d*(-0.24609375_wp &
-        + d*0.2255859375_wp)))))
-    e = d + h*(2.0_wp + h)*(1.0_wp + d)
-    h = h - 0.5_wp*(1.0_wp + h)*e
-    li = il0 + il0*h
-    a = (l0 + par)*li
-    b = perp*li
-    ! sqrt(1 + d) - 1 = (1 + d) r - 1
-    st = d + h*(1.0_wp + d)
-    n_out = n_out + merge(1, 0, abs(d) > near)
+    integer :: past
+    include 'edge_loop/iem_edge_near.inc'
+    n_out = n_out + past
   end subroutine edge_near
 
   !> edge_measure's values of an edge past edge_near's range (those within it left as they
