@@ -19,7 +19,6 @@ void iem_cache_prefetch(const double *p, int n, int write)
     }
 }
 
-
 /* The number of CPUs in a Linux CPU list such as "0-3,8,10-11" (0 when it cannot be read). */
 static long cpu_count(const char *list)
 {

@@ -88,12 +88,7 @@ contains
     end do
     n_out(2) = nt
     n_out(3) = n
-    if (nt > 0) then
-      do c = 1, m
-        call edge_far(top%u(c, 1) - top%u(c - 1, 1), top%u(c, 2) - top%u(c - 1, 2), k%lx, &
-                      k%il0(1), top%x(c), top%y(c), top%li(c), top%st(c))
-      end do
-    end if
+    if (nt > 0) call row_far(k, m, top%u, top%x, top%y, top%li, top%st)
     if (n == 0) return
     do c = 0, m
       call edge_far(top%u(c, 2) - bot%u(c, 2), top%u(c, 1) - bot%u(c, 1), k%ly, k%il0(2), &
@@ -125,12 +120,21 @@ contains
       rs(c) = st
       n_out = n_out + past
     end do
-    if (n_out == 0) return
+    if (n_out > 0) call row_far(k, m, u, x, y, ri, rs)
+  end subroutine row_edges
+
+  !> row_edges' values of a row's edges past edge_near's range, measured again (edge_far).
+  pure subroutine row_far(k, m, u, x, y, ri, rs)
+    type(cell_constants_t), intent(in) :: k
+    integer, intent(in) :: m
+    real(wp), intent(in) :: u(0:chunk, 2)
+    real(wp), intent(inout) :: x(chunk), y(chunk), ri(chunk), rs(chunk)
+    integer :: c
     do c = 1, m
       call edge_far(u(c, 1) - u(c - 1, 1), u(c, 2) - u(c - 1, 2), k%lx, k%il0(1), x(c), y(c), &
                     ri(c), rs(c))
     end do
-  end subroutine row_edges
+  end subroutine row_far
 
   !> An edge of reference length l0 (inverse il0) whose end moved by par along the edge and
   !> perp across it, relative to its start: its unit vector's components along (a) and across
