@@ -53,13 +53,15 @@ static int read_line(const char *path, char *buf, int n)
     return ok;
 }
 
-/* Bytes of CPU 0's last-level data cache for each CPU that shares it, from Linux's sysfs
- * (/sys/devices/system/cpu/cpu0/cache); 0 when it cannot be read. */
-long iem_cache_share(void)
+/* Bytes of one of CPU 0's data caches for each CPU that shares it, from Linux's sysfs
+ * (/sys/devices/system/cpu/cpu0/cache): the last level's (below_last = 0), or the largest
+ * level's below the last (below_last /= 0: the largest the CPU keeps for itself; the last
+ * level's where it is the only one); 0 when it cannot be read. */
+long iem_cache_share(int below_last)
 {
     char path[128], buf[256], *end;
-    long best_level = 0, share = 0, level, size, cpus;
-    int i;
+    long level_of[16], share_of[16], top = 0, pick = 0, level, size, cpus, share = 0;
+    int i, n = 0;
     for (i = 0; i < 16; i++) {
         snprintf(path, sizeof path, "/sys/devices/system/cpu/cpu0/cache/index%d/type", i);
         if (!read_line(path, buf, sizeof buf)) continue;
@@ -67,7 +69,6 @@ long iem_cache_share(void)
         snprintf(path, sizeof path, "/sys/devices/system/cpu/cpu0/cache/index%d/level", i);
         if (!read_line(path, buf, sizeof buf)) continue;
         level = strtol(buf, NULL, 10);
-        if (level <= best_level) continue;
         snprintf(path, sizeof path, "/sys/devices/system/cpu/cpu0/cache/index%d/size", i);
         if (!read_line(path, buf, sizeof buf)) continue;
         size = strtol(buf, &end, 10);
@@ -77,9 +78,17 @@ long iem_cache_share(void)
         snprintf(path, sizeof path, "/sys/devices/system/cpu/cpu0/cache/index%d/shared_cpu_list",
                  i);
         cpus = read_line(path, buf, sizeof buf) ? cpu_count(buf) : 0;
-        if (size <= 0 || cpus <= 0) continue;
-        best_level = level;
-        share = size / cpus;
+        if (level <= 0 || size <= 0 || cpus <= 0) continue;
+        level_of[n] = level;
+        share_of[n] = size / cpus;
+        if (level > top) top = level;
+        n++;
     }
+    if (below_last)
+        for (i = 0; i < n; i++)
+            if (level_of[i] < top && level_of[i] > pick) pick = level_of[i];
+    if (pick == 0) pick = top;
+    for (i = 0; i < n; i++)
+        if (level_of[i] == pick && share_of[i] > share) share = share_of[i];
     return share;
 }

@@ -56,7 +56,7 @@ static inline void add4(double *f, __m256d a, __m256d b, __m256d c, __m256d d) {
 #endif
 
 /* The corner forces fx, fy(cell, corner) of a chunk's m cells added to its bottom and top
- * node rows' forces fb, ft(2, 0:m) (iem_cell_kernel's add_block_forces): bottom node j gets
+ * node rows' forces fb, ft(2, 0:m) (iem_kernel_rows' add_block_forces): bottom node j gets
  * corner 2 of cell j, then corner 1 of cell j + 1; top node j corner 3 of cell j, then
  * corner 4 of cell j + 1. */
 void iem_scatter_rows(int m, double *fb, double *ft, const double *fx, const double *fy,

@@ -1,6 +1,6 @@
 !> The force kernel's row copies written with AVX2 vectors (iem_kernel_rows_simd.c): a chunk's
 !> node rows gathered out of the state and its corner forces added to the node rows' forces,
-!> bit for bit as iem_cell_kernel's loops do them, which run where the C file is built without
+!> bit for bit as iem_kernel_rows' loops do them, which run where the C file is built without
 !> AVX2 (docs/architecture.md, "The force kernel").
 module iem_kernel_simd
   use, intrinsic :: iso_c_binding, only: c_int, c_double
@@ -25,7 +25,7 @@ module iem_kernel_simd
       real(c_double), intent(in) :: y(*)
       real(c_double), intent(inout) :: w(*)
     end subroutine c_gather_row4
-    !> iem_cell_kernel's add_block_forces (fx, fy of leading dimension ldf), where built.
+    !> iem_kernel_rows' add_block_forces (fx, fy of leading dimension ldf), where built.
     pure subroutine c_scatter_rows(m, fb, ft, fx, fy, ldf) bind(c, name='iem_scatter_rows')
       import :: c_int, c_double
       integer(c_int), value :: m, ldf
