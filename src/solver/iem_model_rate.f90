@@ -6,7 +6,6 @@ submodule (iem_model) iem_model_rate
   use iem_timers, only: timer_switch, t_force, t_halo, t_update
   use iem_node_pass, only: accelerations_in_place
   use iem_cell_table, only: cell_table_t
-  use iem_prefetch, only: prefetch_from_nodes, banded_prefetch_from_nodes
   implicit none
 
 contains
@@ -413,33 +412,27 @@ contains
     !> The cell forces of the chunks of table (with at, those of the split's routed chunks;
     !> with chunk_range, only those chunks), summed into fs; their cells' energies added to
     !> en_sum when the evaluation keeps them. The kernel's damping power goes to p_damp, but
-    !> with chunk_range (which evaluate_bands uses only without stiffness damping). The
-    !> kernel's prefetch hints from iem_prefetch's node counts: a band's (chunk_range) or a
-    !> whole sweep's.
+    !> with chunk_range (which evaluate_bands uses only without stiffness damping).
     subroutine cells(fs, table, at, chunk_range)
       real(wp), intent(inout), contiguous :: fs(:, :)
       type(cell_table_t), intent(in) :: table
       integer, intent(in), optional, contiguous :: at(:)
       integer, intent(in), optional :: chunk_range(2)
       real(wp) :: pd
-      integer :: from
-      from = prefetch_from_nodes
-      if (present(chunk_range)) from = banded_prefetch_from_nodes
       if (energies) then
-        call chunks(fs, table, pd, from, at, this%en_sum, chunk_range)
+        call chunks(fs, table, pd, at, this%en_sum, chunk_range)
       else
-        call chunks(fs, table, pd, from, at, range=chunk_range)
+        call chunks(fs, table, pd, at, range=chunk_range)
       end if
       if (.not. present(chunk_range)) p_damp = pd
     end subroutine cells
 
     !> The kernel's calls of cells, with terms (the energies' exact sum) or without; pd the
-    !> kernel's damping power; from its prefetch_from.
-    subroutine chunks(fs, table, pd, from, at, terms, range)
+    !> kernel's damping power.
+    subroutine chunks(fs, table, pd, at, terms, range)
       real(wp), intent(inout), contiguous :: fs(:, :)
       type(cell_table_t), intent(in) :: table
       real(wp), intent(out) :: pd
-      integer, intent(in) :: from
       integer, intent(in), optional, contiguous :: at(:)
       type(exact_sum_t), intent(inout), optional :: terms
       integer, intent(in), optional :: range(2)
@@ -452,14 +445,14 @@ contains
                            this%energy, pd, this%n_state - 1, this%nl, accept, this%ks, &
                            lat%cell_mat, none, this%pw_cell, energy_terms=terms, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
-                           side=this%split%side, chunks=range, slots=this%slots, prefetch_from=from)
+                           side=this%split%side, chunks=range, slots=this%slots)
         else
           call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                            this%energy, pd, this%n_state - 1, this%nl, accept, &
                            cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
                            add=.true., rows=this%rows, route_at=at, &
                            route=this%split%route, side=this%split%side, &
-                           chunks=range, slots=this%slots, prefetch_from=from)
+                           chunks=range, slots=this%slots)
         end if
       else if (this%fracture) then
         if (this%mixed) then
@@ -468,14 +461,14 @@ contains
                            cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
                            cell_power=this%pw_cell, fr=this%fr, time=t, &
                            add=.true., rows=this%rows, route_at=at, route=this%split%route, &
-                           side=this%split%side, chunks=range, slots=this%slots, prefetch_from=from)
+                           side=this%split%side, chunks=range, slots=this%slots)
         else
           call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                            this%energy, pd, this%n_state - 1, commit=accept, &
                            cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
                            fr=this%fr, time=t, add=.true., rows=this%rows, &
                            route_at=at, route=this%split%route, side=this%split%side, &
-                           chunks=range, slots=this%slots, prefetch_from=from)
+                           chunks=range, slots=this%slots)
         end if
       else if (this%mixed) then
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
@@ -483,14 +476,14 @@ contains
                          cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
                          cell_power=this%pw_cell, add=.true., rows=this%rows, &
                          route_at=at, route=this%split%route, side=this%split%side, &
-                         chunks=range, slots=this%slots, prefetch_from=from)
+                         chunks=range, slots=this%slots)
       else
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                          this%energy, pd, this%n_state - 1, cell_energy=none, &
                          energy_terms=terms, &
                          cell_power=this%pw_cell, add=.true., rows=this%rows, &
                          route_at=at, route=this%split%route, side=this%split%side, &
-                         chunks=range, slots=this%slots, prefetch_from=from)
+                         chunks=range, slots=this%slots)
       end if
     end subroutine chunks
   end procedure model_rate

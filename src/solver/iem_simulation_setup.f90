@@ -3,7 +3,6 @@
 !> history buffer; and the initial velocity field.
 submodule (iem_simulation) iem_simulation_setup
   use mpi_f08, only: MPI_Comm_rank, MPI_Comm_size, MPI_SUM, MPI_INTEGER8
-  use iem_prefetch, only: set_prefetch_from
   use iem_config, only: damping_config_t
   use iem_decomposition, only: decompose
   use iem_body_numbering, only: body_strip_t, number_body
@@ -39,8 +38,6 @@ contains
     type(body_strip_t) :: strip
 
     wall_setup = MPI_Wtime()
-    ! the force kernel's prefetch hints, from the size of this machine's caches
-    call set_prefetch_from()
     this%cfg = cfg
     this%static = cfg%run%analysis == 'static'
     this%verlet = .not. this%static .and. cfg%run%integrator == 'verlet'

@@ -20,7 +20,6 @@ module iem_cell_kernel
                               chunk_elastic_tested, onsets_none, onsets_shear, onsets_all
   use iem_fracture, only: fracture_t
   use iem_fracture_kernel, only: chunk_intact, chunk_unhit
-  use iem_prefetch, only: prefetch, prefetch_from_nodes
   use iem_exact_sum, only: exact_sum_t
   use iem_cell_table, only: cell_table_t, cell_table
   use iem_kernel_rows, only: gather_block, gather_row, gather_rows, add_node_forces, &
@@ -120,8 +119,7 @@ contains
   !> commit their damage is committed at time (iem_fracture_kernel).
   pure subroutine cell_forces(k, cells, n_owned, y, beta, f, energy, damp_power, damp_row, &
                               nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, &
-                              add, rows, route_at, route, side, energy_terms, chunks, slots, &
-                              prefetch_from)
+                              add, rows, route_at, route, side, energy_terms, chunks, slots)
     type(cell_constants_t), intent(in) :: k
     !> The cells, in chunks, with their corners.
     type(cell_table_t), intent(in) :: cells
@@ -157,9 +155,6 @@ contains
     !> takes them from the call before, which left its chunks' top rows in rows (the nodes of
     !> those rows not changed since).
     type(kernel_slots_t), intent(inout), optional :: slots
-    !> Prefetch the next chunk's rows when y holds at least this many nodes (default
-    !> iem_prefetch's prefetch_from_nodes).
-    integer, intent(in), optional :: prefetch_from
     ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
     ! (w) and, with filtered damping, the velocities (p)
     integer :: bn(0:chunk), tn(0:chunk), cq(4, chunk)
@@ -187,7 +182,6 @@ contains
     logical :: lean, intact, paper, shear_onset
     real(wp) :: onset(3), lc1(5), near
     integer(i8) :: n_past
-    logical :: hint
 
     nc = cells%n_cells
     keep_energy = .false.
@@ -253,12 +247,6 @@ contains
         spare = slots%spare
       end if
     end if
-    ! the prefetch hints, on large ranks
-    if (present(prefetch_from)) then
-      hint = size(y, 2) >= prefetch_from
-    else
-      hint = size(y, 2) >= prefetch_from_nodes
-    end if
     ic_first = 1
     ic_last = n_chunks()
     if (present(chunks)) then
@@ -267,8 +255,6 @@ contains
     end if
     do ic = ic_first, ic_last
       call chunk_of(ic, c0, m, consec, b0, t0)
-      ! the next chunk's top node row (values and forces) into the caches
-      if (hint .and. ic < n_chunks()) call prefetch_chunk(ic + 1)
       ! the chunk's bottom and top rows: a consecutive chunk's bottom row is the slot of the
       ! chunk below when that chunk's top row is this row; its top row goes to a free slot
       ib = kernel_slots + 1
@@ -446,17 +432,6 @@ contains
     pure integer function n_chunks()
       n_chunks = cells%n_chunks()
     end function n_chunks
-
-    !> Ask for chunk j's top node row of y and of f (when numbered consecutively).
-    pure subroutine prefetch_chunk(j)
-      integer, intent(in) :: j
-      integer :: c1, m1, b1, t1
-      logical :: cons1
-      call chunk_of(j, c1, m1, cons1, b1, t1)
-      if (.not. cons1) return
-      call prefetch(y(:, t1:t1 + m1), size(y, 1)*(m1 + 1), 0)
-      call prefetch(f(:, t1:t1 + m1), 2*(m1 + 1), 1)
-    end subroutine prefetch_chunk
 
     !> Whether chunk j's corner forces are routed.
     pure logical function routed(j)

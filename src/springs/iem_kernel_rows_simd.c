@@ -5,9 +5,12 @@
  * lane exchange a vector, where gfortran's vectorised loops use lane-crossing permutations.
  * The gather copies; the scatter does each node's additions in the Fortran loop's order,
  * (f + first corner force) + second, so the results are bit for bit the loops'
- * (test_iem_cell_kernel checks it). Built without AVX2, iem_kernel_rows_simd() is 0 and the
- * Fortran loops run. Arrays are Fortran's column-major: y(4, 0:m), w(0:ld-1, 2),
- * f(2, 0:m), fx(ldf, 4). */
+ * (test_iem_cell_kernel checks it). Both ask for the memory of the next m + 1 nodes as they
+ * go (a cache hint, no value changed): on consecutively numbered node rows, the next chunk's
+ * top row, or the next node row's start after a row's last chunk, so that the kernel's sweep
+ * does not wait on memory where the state has left the core's caches (docs/architecture.md,
+ * "The force kernel"). Built without AVX2, iem_kernel_rows_simd() is 0 and the Fortran loops
+ * run. Arrays are Fortran's column-major: y(4, 0:m), w(0:ld-1, 2), f(2, 0:m), fx(ldf, 4). */
 #if defined(__AVX2__)
 #include <immintrin.h>
 #define IEM_SIMD 1
@@ -19,12 +22,16 @@
 int iem_kernel_rows_simd(void) { return IEM_SIMD; }
 
 /* w(i, 1) = y(r0 + 1, i), w(i, 2) = y(r0 + 2, i) for the nodes i = 0..m of a block of
- * consecutive nodes (4 state values a node); ld: w's leading dimension. */
+ * consecutive nodes (4 state values a node); ld: w's leading dimension. The next m + 1
+ * nodes' values are asked for, two cache lines (four nodes) at a time. */
 void iem_gather_row4(int m, const double *y, int r0, int ld, double *w) {
 #if IEM_SIMD
+  const double *ahead = y + 4 * (m + 1);
   int i = 0;
   y += r0;
   for (; i + 3 <= m; i += 4) {
+    __builtin_prefetch(ahead + 4 * i, 0, 3);
+    __builtin_prefetch(ahead + 4 * i + 8, 0, 3);
     __m256d ac = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(y + 4 * i)),
                                       _mm_loadu_pd(y + 4 * i + 8), 1);
     __m256d bd = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(y + 4 * i + 4)),
@@ -33,6 +40,7 @@ void iem_gather_row4(int m, const double *y, int r0, int ld, double *w) {
     _mm256_storeu_pd(w + ld + i, _mm256_unpackhi_pd(ac, bd));
   }
   for (; i <= m; i++) {
+    __builtin_prefetch(ahead + 4 * i, 0, 3);
     w[i] = y[4 * i];
     w[ld + i] = y[4 * i + 1];
   }
@@ -58,7 +66,8 @@ static inline void add4(double *f, __m256d a, __m256d b, __m256d c, __m256d d) {
 /* The corner forces fx, fy(cell, corner) of a chunk's m cells added to its bottom and top
  * node rows' forces fb, ft(2, 0:m) (iem_kernel_rows' add_block_forces): bottom node j gets
  * corner 2 of cell j, then corner 1 of cell j + 1; top node j corner 3 of cell j, then
- * corner 4 of cell j + 1. */
+ * corner 4 of cell j + 1. The forces of the top row's next m + 1 nodes are asked for (to be
+ * written), a cache line (four nodes) at a time. */
 void iem_scatter_rows(int m, double *fb, double *ft, const double *fx, const double *fy,
                       int ldf) {
 #if IEM_SIMD
@@ -72,6 +81,7 @@ void iem_scatter_rows(int m, double *fb, double *ft, const double *fx, const dou
   ft[1] += y4[0];
   j = 1;
   for (; j + 3 <= m - 1; j += 4) {
+    __builtin_prefetch(ft + 2 * (m + 1) + 2 * j, 1, 3);
     add4(fb + 2 * j, _mm256_loadu_pd(x2 + j - 1), _mm256_loadu_pd(y2 + j - 1),
          _mm256_loadu_pd(x1 + j), _mm256_loadu_pd(y1 + j));
     add4(ft + 2 * j, _mm256_loadu_pd(x3 + j - 1), _mm256_loadu_pd(y3 + j - 1),
