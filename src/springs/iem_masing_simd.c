@@ -16,6 +16,8 @@
  * s_rev(depth, n). */
 #include <stdint.h>
 
+#include "iem_masing_simd.h"
+
 #if defined(__AVX2__)
 #include <immintrin.h>
 #define IEM_SIMD 1
@@ -73,11 +75,11 @@ static int spring1(int i, int depth, int accept, const double *e, const double *
  * the strain ek, without the tangent: the stress there, the level reached and whether the
  * committed point is pushed. Bit for bit iem_masing's masing_walk (the same operations in
  * the same order); an unchanged strain keeps the committed stress. */
-static double walk_slow(int i, int depth, double ek, const double *pp, const double *pn,
-                        const double *pb, const double *mp, const double *mn,
-                        const double *e_c, const double *s_c, const int32_t *dir,
-                        const int32_t *count, const double *e_rev, const double *s_rev,
-                        int32_t *level_out, int32_t *push_out) {
+double iem_masing_walk_slow(int i, int depth, double ek, const double *pp, const double *pn,
+                            const double *pb, const double *mp, const double *mn,
+                            const double *e_c, const double *s_c, const int32_t *dir,
+                            const int32_t *count, const double *e_rev, const double *s_rev,
+                            int32_t *level_out, int32_t *push_out) {
   double ec = e_c[i], sc = s_c[i], e0 = 0.0, s0 = 0.0, aim, st;
   int32_t n0 = count[i], d0 = dir[i], m, push, level, d = 0;
   const double *er = e_rev + (int64_t)i * depth, *sr = s_rev + (int64_t)i * depth;
@@ -134,20 +136,20 @@ static double walk_slow(int i, int depth, double ek, const double *pp, const dou
   return st;
 }
 
-/* masing_commit of spring i (as walk_slow) to the strain ek, its stress in s[i]. Bit for bit
- * iem_masing's masing_commit. */
-static void commit_slow(int i, int depth, double ek, const double *pp, const double *pn,
-                        const double *pb, const double *mp, const double *mn, double *e_c,
-                        double *s_c, int32_t *dir, int32_t *count, double *e_rev,
-                        double *s_rev, double *e_max_pos, double *e_max_neg, double *s) {
+/* masing_commit of spring i (as iem_masing_walk_slow) to the strain ek, its stress in s[i].
+ * Bit for bit iem_masing's masing_commit. */
+void iem_masing_commit_slow(int i, int depth, double ek, const double *pp, const double *pn,
+                            const double *pb, const double *mp, const double *mn, double *e_c,
+                            double *s_c, int32_t *dir, int32_t *count, double *e_rev,
+                            double *s_rev, double *e_max_pos, double *e_max_neg, double *s) {
   double ec = e_c[i], sc = s_c[i], st;
   int32_t n0 = count[i], level, push;
   if (ek == ec) {
     s[i] = sc;
     return;
   }
-  st = walk_slow(i, depth, ek, pp, pn, pb, mp, mn, e_c, s_c, dir, count, e_rev, s_rev, &level,
-                 &push);
+  st = iem_masing_walk_slow(i, depth, ek, pp, pn, pb, mp, mn, e_c, s_c, dir, count, e_rev, s_rev,
+                            &level, &push);
   if (push && level == n0 + 1) {
     e_rev[(int64_t)i * depth + level - 1] = ec;
     s_rev[(int64_t)i * depth + level - 1] = sc;
@@ -215,9 +217,10 @@ static inline __m256d curve_stress(__m256d ek, __m256d e0, __m256d s0, __m256d l
 /* masing_springs' first loop over n springs (strains e, constants of spring i pp[i] ..
  * mn[i]: k_pos, k_neg, k_branch, k_mirror_pos, k_mirror_neg) and with accept (non-zero) the
  * commit of every move (the fast ones in vectors, with the reversals they push, the others
- * by commit_slow): the stresses s, the committed strain and stress before (e_was, s_was);
- * without accept, the springs left to the state machine in slow[0 .. *n_slow - 1] (numbered
- * from 1, in order; their stresses s are then their committed ones), else *n_slow = 0. */
+ * by iem_masing_commit_slow): the stresses s, the committed strain and stress before (e_was,
+ * s_was); without accept, the springs left to the state machine in slow[0 .. *n_slow - 1]
+ * (numbered from 1, in order; their stresses s are then their committed ones), else
+ * *n_slow = 0. */
 void iem_masing_block(int n, int depth, int accept, const double *e, const double *pp,
                       const double *pn, const double *pb, const double *mp, const double *mn,
                       double *e_c, double *s_c, int32_t *dir, int32_t *count, double *e_rev,
@@ -310,8 +313,8 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
     while (others) {
       int j = __builtin_ctz(others);
       if (accept)
-        commit_slow(i + j, depth, e[i + j], pp, pn, pb, mp, mn, e_c, s_c, dir, count, e_rev,
-                    s_rev, e_max_pos, e_max_neg, s);
+        iem_masing_commit_slow(i + j, depth, e[i + j], pp, pn, pb, mp, mn, e_c, s_c, dir, count,
+                               e_rev, s_rev, e_max_pos, e_max_neg, s);
       else
         slow[ns++] = i + j + 1;
       others &= others - 1;
@@ -323,11 +326,10 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
                 e_max_pos, e_max_neg, s, e_was, s_was))
     {
       if (accept)
-        commit_slow(i, depth, e[i], pp, pn, pb, mp, mn, e_c, s_c, dir, count, e_rev, s_rev,
-                    e_max_pos, e_max_neg, s);
+        iem_masing_commit_slow(i, depth, e[i], pp, pn, pb, mp, mn, e_c, s_c, dir, count, e_rev,
+                               s_rev, e_max_pos, e_max_neg, s);
       else
         slow[ns++] = i + 1;
     }
   *n_slow = ns;
 }
-

@@ -8,12 +8,13 @@
 module iem_nonlinear_springs
   use iem_kinds, only: wp, ip
   use iem_masing, only: masing_state_t, masing_curve, masing_trial, masing_commit, &
-                        masing_constants, n_masing_constants, k_pos, k_neg, k_mirror_pos, &
-                        k_mirror_neg
+                        masing_constants, n_masing_constants, k_pos, k_neg, k_branch, &
+                        k_mirror_pos, k_mirror_neg
   use iem_masing_fast, only: fast_stresses, fast_commit, n_q, q_half_energy, n_commit_real, &
                              n_commit_int, c_strain, c_stress, c_max_pos, c_max_neg, c_ps, c_e0, &
                              c_s0, c_hk, c_lo, c_hi, c_count, c_dir
   use iem_spring_constants, only: effective_elastic
+  use iem_masing_simd, only: masing_simd, c_curve_commit, c_curve_stress
   use iem_alloc_guard, only: alloc_guard_t
   implicit none
   private
@@ -28,6 +29,9 @@ module iem_nonlinear_springs
   !> Cells of a chunk of the force kernel (iem_cell_laws' chunk): the rows of the table q;
   !> stress and commit take at most max_springs springs at a time.
   integer, parameter :: chunk_cells = 64, max_springs = springs_per_cell*chunk_cells
+  !> Columns of the springs' curves (nonlinear_springs_t's cv).
+  integer, parameter :: cv_lo = 1, cv_hi = 2, cv_e0 = 3, cv_s0 = 4, cv_hk = 5, cv_ps = 6, &
+                        n_cv = 6
 
   !> The nonlinear springs of the local cells of one rank.
   type :: nonlinear_springs_t
@@ -49,8 +53,12 @@ module iem_nonlinear_springs
     !> (lo, hi) of the strains a move ends on the curve it starts on, the start (e0, s0) and
     !> scale hk of the curve a move continues on, and the direction ps of a move that pushes
     !> a reversal. Derived from the state, not saved: a cell's are made when first needed
-    !> after ready(cell) was cleared (init, stale).
-    real(wp), allocatable :: lo(:), hi(:), e0(:), s0(:), hk(:), ps(:)
+    !> after ready(cell) was cleared (init, stale). Spring i's are cv(i, cv_lo .. cv_ps); the
+    !> leading dimension (curve_rows) puts the columns, and column 0 (unused) ahead of them,
+    !> in different sets of the first-level cache: the loops over a chunk's springs read
+    !> them at once with the state's arrays, which all start alike on their pages where the
+    !> allocator maps each one (large arrays).
+    real(wp), allocatable :: cv(:, :)
     logical, allocatable :: ready(:)
     !> Number of cells whose curves are made.
     integer :: n_ready = 0
@@ -121,17 +129,16 @@ contains
                         [0.0_wp, 0.0_wp, 0.0_wp])
     end do
     call this%set_law(1, er_pos, er_neg, coeffs)
-    bytes = real(springs_per_cell, wp)*n_cells*(merge(96.0_wp, 48.0_wp, this%curves) + &
+    bytes = real(springs_per_cell, wp)*n_cells*(merge(104.0_wp, 48.0_wp, this%curves) + &
                                                 16.0_wp*depth)
     call this%state%init(int(springs_per_cell*n_cells, ip), int(depth, ip), st)
     call g%note(int(st), 'the nonlinear springs of the rank', bytes)
-    if (allocated(this%work)) deallocate(this%work, this%lo, this%hi, this%e0, this%s0, &
-                                         this%hk, this%ps, this%ready)
+    if (allocated(this%work)) deallocate(this%work, this%cv, this%ready)
     if (.not. g%failed) then
       n = springs_per_cell*n_cells
       if (.not. this%curves) n = 0
-      allocate(this%work(springs_per_cell*n_cells), this%lo(n), this%hi(n), this%e0(n), &
-               this%s0(n), this%hk(n), this%ps(n), this%ready(merge(n_cells, 0, this%curves)), &
+      allocate(this%work(springs_per_cell*n_cells), this%cv(curve_rows(n), 0:n_cv), &
+               this%ready(merge(n_cells, 0, this%curves)), &
                stat=ierr)
       call g%note(ierr, 'the nonlinear springs of the rank', bytes)
     end if
@@ -200,7 +207,8 @@ contains
   !> ready) at the strains e(k), each reached monotonically from its committed state, bit for
   !> bit masing_trial's; the state is not changed. mv(k) gives the kind of each move: 0 on its
   !> curve (or none), 1 a push on to a new branch (both from a branch-free vectorised loop),
-  !> 2 (n_slow of them) the state machine's.
+  !> 2 (n_slow of them) the state machine's (in iem_masing_curves_simd.c too where it is built
+  !> with AVX2).
   pure subroutine nonlinear_springs_stress(this, i0, n, e, p, s, mv, n_slow)
     class(nonlinear_springs_t), intent(in) :: this
     integer, intent(in) :: i0, n
@@ -213,9 +221,20 @@ contains
     integer :: list(max_springs), k, i, m
     if (n > max_springs) error stop 'nonlinear_springs_stress: more than max_springs springs'
     associate(st => this%state, j => i0 + 1, l => i0 + n)
-      call fast_stresses(n, e, p, size(p, 1), 0, st%strain(j:l), st%stress(j:l), this%ps(j:l), &
-                         this%e0(j:l), this%s0(j:l), this%hk(j:l), this%lo(j:l), this%hi(j:l), &
-                         s, mv)
+      if (masing_simd()) then
+        ! the same loop in AVX2 vectors, the state machine's trials in C too
+        ! (iem_masing_curves_simd.c)
+        call c_curve_stress(n, int(st%depth), e, p(1:n, k_pos), p(1:n, k_neg), &
+                            p(1:n, k_branch), p(1:n, k_mirror_pos), p(1:n, k_mirror_neg), &
+                            st%strain(j:l), st%stress(j:l), st%dir(j:l), st%count(j:l), &
+                            st%e_rev(:, j:l), st%s_rev(:, j:l), this%cv(j:l, cv_ps), &
+                            this%cv(j:l, cv_e0), this%cv(j:l, cv_s0), this%cv(j:l, cv_hk), &
+                            this%cv(j:l, cv_lo), this%cv(j:l, cv_hi), s, mv, list, n_slow)
+        return
+      end if
+      call fast_stresses(n, e, p, size(p, 1), 0, st%strain(j:l), st%stress(j:l), &
+                         this%cv(j:l, cv_ps), this%cv(j:l, cv_e0), this%cv(j:l, cv_s0), &
+                         this%cv(j:l, cv_hk), this%cv(j:l, cv_lo), this%cv(j:l, cv_hi), s, mv)
     end associate
     call moves_from(n, mv, 2.0_wp, list, n_slow)
     do m = 1, n_slow
@@ -233,56 +252,39 @@ contains
   !> committed state) to their work: bit for bit masing_commit. Block by block of springs,
   !> the moves that end on their curve or push on to a new branch are evaluated and
   !> committed in vectorised loops (the pushed points stored between), the others then by
-  !> masing_commit, with their curves made again.
+  !> masing_commit, with their curves made again. Where iem_masing_curves_simd.c is built with
+  !> AVX2, its curve commit does the vectorised part in one pass, in place, and the state
+  !> machine's commits.
   pure subroutine nonlinear_springs_commit(this, i0, n, e, p, s)
     class(nonlinear_springs_t), intent(inout) :: this
     integer, intent(in) :: i0, n
     real(wp), intent(in) :: e(n)
     real(wp), intent(out) :: s(n)
     real(wp), intent(in), contiguous :: p(:, :)
-    ! a block of springs: small enough for its values to stay in the nearest cache between
-    ! the loops; the kinds of the moves and the new values
-    integer, parameter :: block = 128
-    real(wp) :: mv(max_springs), room(block), nr(block, n_commit_real), ec, sc, dw
-    integer(ip) :: ni(block, n_commit_int)
-    integer :: list(max_springs), k, i, m, n_slow, n_off, b, nb
+    real(wp) :: ec, sc, dw
+    integer :: list(max_springs), k, i, m, n_slow
     if (n > max_springs) error stop 'nonlinear_springs_commit: more than max_springs springs'
     associate(st => this%state)
-      do b = 0, n - 1, block
-        nb = min(block, n - b)
-        associate(j => i0 + b + 1, l => i0 + b + nb, q => b + 1, r => b + nb)
-          call fast_stresses(nb, e(q:r), p, size(p, 1), b, st%strain(j:l), &
-                             st%stress(j:l), this%ps(j:l), this%e0(j:l), this%s0(j:l), &
-                             this%hk(j:l), this%lo(j:l), this%hi(j:l), s(q:r), mv(q:r))
-          room(1:nb) = real(st%depth - st%count(j:l) - 1, wp)
-          call fast_commit(nb, room, e(q:r), p, size(p, 1), b, s(q:r), mv(q:r), &
-                           st%strain(j:l), st%stress(j:l), st%dir(j:l), st%count(j:l), &
-                           st%e_max_pos(j:l), st%e_max_neg(j:l), this%ps(j:l), this%e0(j:l), &
-                           this%s0(j:l), this%hk(j:l), this%lo(j:l), this%hi(j:l), &
-                           this%work(j:l), block, nr, ni)
-          ! the reversal points pushed: the committed points before the move
-          call moves_from(nb, mv(q:r), 1.0_wp, list, n_off)
-          do m = 1, n_off
-            if (mv(b + list(m)) /= 1.0_wp) cycle
-            i = i0 + b + list(m)
-            st%e_rev(st%count(i) + 1, i) = st%strain(i)
-            st%s_rev(st%count(i) + 1, i) = st%stress(i)
-          end do
-          st%strain(j:l) = nr(1:nb, c_strain)
-          st%stress(j:l) = nr(1:nb, c_stress)
-          st%e_max_pos(j:l) = nr(1:nb, c_max_pos)
-          st%e_max_neg(j:l) = nr(1:nb, c_max_neg)
-          st%count(j:l) = ni(1:nb, c_count)
-          st%dir(j:l) = ni(1:nb, c_dir)
-          this%ps(j:l) = nr(1:nb, c_ps)
-          this%e0(j:l) = nr(1:nb, c_e0)
-          this%s0(j:l) = nr(1:nb, c_s0)
-          this%hk(j:l) = nr(1:nb, c_hk)
-          this%lo(j:l) = nr(1:nb, c_lo)
-          this%hi(j:l) = nr(1:nb, c_hi)
+      if (masing_simd()) then
+        ! the loops below in one pass of AVX2 vectors, in place, and the state machine's
+        ! commits in C (iem_masing_curves_simd.c); then the curves of those
+        associate(j => i0 + 1, l => i0 + n)
+          call c_curve_commit(n, int(st%depth), e, p(1:n, k_pos), p(1:n, k_neg), &
+                              p(1:n, k_branch), p(1:n, k_mirror_pos), p(1:n, k_mirror_neg), &
+                              p(1:n, q_half_energy), st%strain(j:l), st%stress(j:l), &
+                              st%dir(j:l), st%count(j:l), st%e_rev(:, j:l), st%s_rev(:, j:l), &
+                              st%e_max_pos(j:l), st%e_max_neg(j:l), this%cv(j:l, cv_ps), &
+                              this%cv(j:l, cv_e0), this%cv(j:l, cv_s0), this%cv(j:l, cv_hk), &
+                              this%cv(j:l, cv_lo), this%cv(j:l, cv_hi), this%work(j:l), s, &
+                              list, n_slow)
         end associate
-      end do
-      call moves_from(n, mv, 2.0_wp, list, n_slow)
+        do m = 1, n_slow
+          k = list(m)
+          call make_curve(this, i0 + k, p(k, k_mirror_pos), p(k, k_mirror_neg))
+        end do
+        return
+      end if
+      call commit_loops(this, i0, n, e, p, s, list, n_slow)
       do m = 1, n_slow
         k = list(m)
         i = i0 + k
@@ -299,6 +301,64 @@ contains
       end do
     end associate
   end subroutine nonlinear_springs_commit
+
+  !> The loops of nonlinear_springs_commit's vectorised part in Fortran (where
+  !> iem_masing_simd.c is built without AVX2, or use_masing_simd is cleared): block by block
+  !> of springs, fast_stresses and fast_commit into work columns copied back, the pushed
+  !> reversal points stored between; the springs left to the state machine in list(1:n_slow).
+  pure subroutine commit_loops(this, i0, n, e, p, s, list, n_slow)
+    class(nonlinear_springs_t), intent(inout) :: this
+    integer, intent(in) :: i0, n
+    real(wp), intent(in) :: e(n)
+    real(wp), intent(in), contiguous :: p(:, :)
+    real(wp), intent(out) :: s(n)
+    integer, intent(out) :: list(max_springs), n_slow
+    ! a block of springs: small enough for its values to stay in the nearest cache between
+    ! the loops; the kinds of the moves and the new values
+    integer, parameter :: block = 128
+    real(wp) :: mv(max_springs), room(block), nr(block, n_commit_real)
+    integer(ip) :: ni(block, n_commit_int)
+    integer :: i, m, n_off, b, nb
+    associate(st => this%state)
+      do b = 0, n - 1, block
+        nb = min(block, n - b)
+        associate(j => i0 + b + 1, l => i0 + b + nb, q => b + 1, r => b + nb)
+          call fast_stresses(nb, e(q:r), p, size(p, 1), b, st%strain(j:l), &
+                             st%stress(j:l), this%cv(j:l, cv_ps), this%cv(j:l, cv_e0), &
+                             this%cv(j:l, cv_s0), this%cv(j:l, cv_hk), this%cv(j:l, cv_lo), &
+                             this%cv(j:l, cv_hi), s(q:r), mv(q:r))
+          room(1:nb) = real(st%depth - st%count(j:l) - 1, wp)
+          call fast_commit(nb, room, e(q:r), p, size(p, 1), b, s(q:r), mv(q:r), &
+                           st%strain(j:l), st%stress(j:l), st%dir(j:l), st%count(j:l), &
+                           st%e_max_pos(j:l), st%e_max_neg(j:l), this%cv(j:l, cv_ps), &
+                           this%cv(j:l, cv_e0), this%cv(j:l, cv_s0), this%cv(j:l, cv_hk), &
+                           this%cv(j:l, cv_lo), this%cv(j:l, cv_hi), &
+                           this%work(j:l), block, nr, ni)
+          ! the reversal points pushed: the committed points before the move
+          call moves_from(nb, mv(q:r), 1.0_wp, list, n_off)
+          do m = 1, n_off
+            if (mv(b + list(m)) /= 1.0_wp) cycle
+            i = i0 + b + list(m)
+            st%e_rev(st%count(i) + 1, i) = st%strain(i)
+            st%s_rev(st%count(i) + 1, i) = st%stress(i)
+          end do
+          st%strain(j:l) = nr(1:nb, c_strain)
+          st%stress(j:l) = nr(1:nb, c_stress)
+          st%e_max_pos(j:l) = nr(1:nb, c_max_pos)
+          st%e_max_neg(j:l) = nr(1:nb, c_max_neg)
+          st%count(j:l) = ni(1:nb, c_count)
+          st%dir(j:l) = ni(1:nb, c_dir)
+          this%cv(j:l, cv_ps) = nr(1:nb, c_ps)
+          this%cv(j:l, cv_e0) = nr(1:nb, c_e0)
+          this%cv(j:l, cv_s0) = nr(1:nb, c_s0)
+          this%cv(j:l, cv_hk) = nr(1:nb, c_hk)
+          this%cv(j:l, cv_lo) = nr(1:nb, c_lo)
+          this%cv(j:l, cv_hi) = nr(1:nb, c_hi)
+        end associate
+      end do
+    end associate
+    call moves_from(n, mv, 2.0_wp, list, n_slow)
+  end subroutine commit_loops
 
   !> The n_of moves k of kind v or above (mv(k) >= v), in order: list(1:n_of).
   pure subroutine moves_from(n, mv, v, list, n_of)
@@ -323,6 +383,14 @@ contains
     end do
   end subroutine moves_from
 
+  !> The leading dimension of the curves' array for n springs: n rounded up to 512 (a 4 kB
+  !> page of values) and 80 more, so that its columns lie 640 bytes apart modulo a page.
+  pure integer function curve_rows(n) result(ld)
+    integer, intent(in) :: n
+    ld = 0
+    if (n > 0) ld = 512*((n + 511)/512) + 80
+  end function curve_rows
+
   !> Make the curve of spring i (mirror factors mp, mn) from its state.
   pure subroutine make_curve(this, i, mp, mn)
     class(nonlinear_springs_t), intent(inout) :: this
@@ -330,8 +398,8 @@ contains
     real(wp), intent(in) :: mp, mn
     associate(st => this%state)
       call masing_curve(st%strain(i), st%dir(i), st%count(i), st%e_rev(:, i), st%s_rev(:, i), &
-                        mp, mn, this%lo(i), this%hi(i), this%e0(i), this%s0(i), this%hk(i), &
-                        this%ps(i))
+                        mp, mn, this%cv(i, cv_lo), this%cv(i, cv_hi), this%cv(i, cv_e0), &
+                        this%cv(i, cv_s0), this%cv(i, cv_hk), this%cv(i, cv_ps))
     end associate
   end subroutine make_curve
 end module iem_nonlinear_springs
