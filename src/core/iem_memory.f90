@@ -95,10 +95,11 @@ contains
     per_node = lattice_node_bytes + model_node_bytes + state + lattice_cell_bytes*cells_per_node
     spring = 0.0_wp
     ! nonlinear springs: the history (48 B and the stack), per cell 8 B, and their curves
-    ! (48 B) where trial evaluations come between commits (not with velocity Verlet)
+    ! (48 B and the 8 B of the unused column that staggers them in the cache) where trial
+    ! evaluations come between commits (not with velocity Verlet)
     if (mc%nonlinear) then
       spring = springs_per_cell*(48.0_wp + 16.0_wp*mc%depth) + 8.0_wp
-      if (trim(mc%integrator) /= 'verlet') spring = spring + springs_per_cell*48.0_wp
+      if (trim(mc%integrator) /= 'verlet') spring = spring + springs_per_cell*56.0_wp
     end if
     ! fracture: 12 largest strains, 8 failure times, the dissipation, 8 last strains, a flag
     if (mc%fracture) spring = spring + fracture_cell_bytes
