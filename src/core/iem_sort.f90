@@ -1,17 +1,12 @@
 !> Sorting: 64-bit integer keys in place (heap sort: O(n log n), no extra memory), and the
-!> stable ordering of n items by a caller's comparison (merge sort: O(n log n)).
+!> stable ordering of n items by an integer key (merge sort: O(n log n)); real keys through
+!> real_key. (Keys, not a caller's comparison: an internal procedure passed as the
+!> comparison needs a trampoline on an executable stack.)
 module iem_sort
-  use iem_kinds, only: i8
+  use iem_kinds, only: i8, wp
   implicit none
   private
-  public :: sort_i8, stable_order, item_before, sum_by_label
-
-  abstract interface
-    !> Whether item a goes strictly before item b.
-    logical function item_before(a, b)
-      integer, intent(in) :: a, b
-    end function item_before
-  end interface
+  public :: sort_i8, stable_sort_by, real_key, sum_by_label
 
 contains
 
@@ -49,16 +44,16 @@ contains
     end do
   end subroutine sum_by_label
 
-  !> order(k): the k-th of the items 1..size(order) ordered by before, items that compare
-  !> equal keeping their order (a bottom-up merge sort).
-  subroutine stable_order(before, order)
-    procedure(item_before) :: before
-    integer, intent(out) :: order(:)
+  !> Reorder the item indices order(:) by key(order(:)) ascending, items with equal keys
+  !> keeping their order (a bottom-up merge sort); sorting by the last criterion first, then
+  !> by each one before it, orders by all of them.
+  pure subroutine stable_sort_by(key, order)
+    integer(i8), intent(in) :: key(:)
+    integer, intent(inout) :: order(:)
     integer, allocatable :: tmp(:)
     integer :: n, width, lo, mid, hi, i, j, k
     logical :: take_left
     n = size(order)
-    order = [(i, i = 1, n)]
     allocate(tmp(n))
     width = 1
     do while (width < n)
@@ -69,7 +64,7 @@ contains
         j = mid
         do k = lo, hi - 1
           take_left = i < mid
-          if (take_left .and. j < hi) take_left = .not. before(order(j), order(i))
+          if (take_left .and. j < hi) take_left = key(order(j)) >= key(order(i))
           if (take_left) then
             tmp(k) = order(i)
             i = i + 1
@@ -82,7 +77,18 @@ contains
       order = tmp
       width = 2*width
     end do
-  end subroutine stable_order
+  end subroutine stable_sort_by
+
+  !> An integer key in the order of the real x (not NaN): a < b exactly when
+  !> real_key(a) < real_key(b), and -0 and +0 give the same key.
+  elemental integer(i8) function real_key(x)
+    real(wp), intent(in) :: x
+    real(wp) :: z
+    ! -0 + 0 is +0; a negative value's bits, all but the sign flipped, order as its value
+    z = x + 0.0_wp
+    real_key = transfer(z, 0_i8)
+    if (real_key < 0_i8) real_key = ieor(real_key, huge(0_i8))
+  end function real_key
 
   !> Sort a(:) ascending.
   pure subroutine sort_i8(a)

@@ -5,7 +5,7 @@ submodule (iem_h5_output) iem_h5_output_frames
   use mpi_f08, only: MPI_Allgather, MPI_Gatherv, MPI_Allreduce, MPI_IN_PLACE, MPI_MAX, &
     MPI_INTEGER, MPI_INTEGER8
   use iem_kinds, only: mpi_wp
-  use iem_sort, only: stable_order
+  use iem_sort, only: stable_sort_by
   use iem_strings, only: itoa
   use iem_xdmf, only: xdmf_frame_name, xdmf_field_bit, xdmf_xyz_suffix
   use hdf5, only: HSIZE_T, h5fflush_f, H5F_SCOPE_GLOBAL_F, h5gcreate_f, h5gopen_f, h5gclose_f, &
@@ -369,7 +369,9 @@ contains
     out_kind = 0
     out_time = 0.0_wp
     if (n_out > 0) then
-      call stable_order(key_before, order(1:n_out))
+      ! by cell, then spring
+      order(1:n_out) = [(k, k = 1, n_out)]
+      call stable_sort_by(all_key(1:n_out), order(1:n_out))
       do k = 1, n_out
         out_cell(k) = all_key(order(k))/springs
         out_spring(k) = int(modulo(all_key(order(k)), int(springs, i8)))
@@ -409,14 +411,6 @@ contains
       msg = 'iem_h5_output: write_failed_springs: cell, spring, kind and time differ in '// &
             'length; nothing written from this rank to '//where//' in '//this%path
     end if
-
-  contains
-
-    !> Whether entry a of the gathered list comes before entry b (by cell, then spring).
-    logical function key_before(a, b)
-      integer, intent(in) :: a, b
-      key_before = all_key(a) < all_key(b)
-    end function key_before
   end procedure h5_output_write_failed_springs
 
   !> Creates the 1-D dataset `name` (file type ftype) of n entries in group `gid` and, when

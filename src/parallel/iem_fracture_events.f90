@@ -8,7 +8,7 @@ module iem_fracture_events
   use iem_kinds, only: wp, ip, i8, mpi_wp, mpi_i8, mpi_ip
   use iem_local_lattice, only: local_lattice_t
   use iem_fracture, only: fracture_t, failure_kind
-  use iem_sort, only: stable_order
+  use iem_sort, only: stable_sort_by, real_key
   implicit none
   private
   public :: fracture_events_t
@@ -109,7 +109,11 @@ contains
     this%n_buf = this%n_buf + n_total
     if (rank /= 0) return
     allocate(order(n_total))
-    call stable_order(before, order)
+    ! by time, then cell, then spring: the last criterion sorted first
+    order = [(k, k = 1, n_total)]
+    call stable_sort_by(all_i(2, :), order)
+    call stable_sort_by(all_i(1, :), order)
+    call stable_sort_by(real_key(all_r(1, :)), order)
     call reserve(this, this%n_buf)
     do k = 1, n_total
       j = order(k)
@@ -120,18 +124,6 @@ contains
       this%spring(n0 + k) = int(all_i(2, j))
       this%kind(n0 + k) = int(all_i(3, j))
     end do
-  contains
-    !> Whether event a comes before event b: by time, then cell, then spring.
-    logical function before(a, b)
-      integer, intent(in) :: a, b
-      if (all_r(1, a) /= all_r(1, b)) then
-        before = all_r(1, a) < all_r(1, b)
-      else if (all_i(1, a) /= all_i(1, b)) then
-        before = all_i(1, a) < all_i(1, b)
-      else
-        before = all_i(2, a) < all_i(2, b)
-      end if
-    end function before
   end subroutine events_gather
 
   !> Empty the buffer (after it was written).

@@ -12,6 +12,10 @@ submodule (iem_simulation) iem_simulation_repartition
   use mpi_f08, only: MPI_SUM
   implicit none
 
+  !> The x below which left_heavy weighs a node 10 (set by repartition_run before it
+  !> repartitions; a module procedure, not an internal one, needs no trampoline).
+  real(wp) :: heavy_below_x = 0.0_wp
+
 contains
 
   !> Documented at its interface in iem_simulation.f90.
@@ -35,6 +39,7 @@ contains
     ! the new partition: the bisection with the nodes of the left half of the grid ten times
     ! heavier than the rest, so that many nodes change rank (the costs that load balancing
     ! will measure take this place later)
+    heavy_below_x = 0.5_wp*this%grid%nx*this%grid%lx
     call repartition(this%body, this%comm, this%lat, this%halo, reg, stat, msg, &
                      weight=left_heavy, width=ns)
     if (stat /= 0) then
@@ -105,12 +110,11 @@ contains
                   itoa(moved(1))//' of '//itoa(this%body%n_nodes)//' nodes changed rank')
     call reg%free()
 
-  contains
-
-    !> Weight of a node in the new partition: 10 in the left half of the grid, else 1.
-    pure integer(i8) function left_heavy(x, y)
-      real(wp), intent(in) :: x, y
-      left_heavy = merge(10_i8, 1_i8, x < 0.5_wp*this%grid%nx*this%grid%lx .and. y > -1.0_wp)
-    end function left_heavy
   end procedure repartition_run
+
+  !> Weight of a node in the new partition: 10 left of heavy_below_x, else 1.
+  pure integer(i8) function left_heavy(x, y)
+    real(wp), intent(in) :: x, y
+    left_heavy = merge(10_i8, 1_i8, x < heavy_below_x .and. y > -1.0_wp)
+  end function left_heavy
 end submodule iem_simulation_repartition
