@@ -26,7 +26,9 @@ about N nodes, plane stress, paper's cell, edge load, at about 0.9 of the stable
   130 Verlet steps, with and without fracture = .true. (the script checks that nothing
   failed: /history/energy/fracture = 0), in tension, and with every criterion (tension,
   crushing, shear: fracture_cost.py --every);
-- weak: the RK4 block of 2e5 nodes on 2 ranks, with the steps of the 1e5 block.
+- weak: the RK4 block of 2e5 nodes on 2 ranks, with the steps of the 1e5 block; and two
+  1-rank runs of the RK4 block of 1e5 nodes started together, each pinned to its own core
+  (the machine's own ceiling for weak scaling: two cores reading one shared cache and memory).
 --quick halves the work (steps, or t_end) of each run and leaves out memory and size (the
 1e6-node runs); weak runs only with --weak or when --only names it.
 
@@ -49,7 +51,10 @@ of that time in each part, the peak resident memory VmHWM of every rank):
 - fracture idle ratio = elastic node-steps/s / node-steps/s with fracture on (nothing failed),
   in tension and with every criterion;
 - weak scaling on 2 ranks = per-rank node-steps/s on 2 ranks with 2x the nodes / node-steps/s
-  of the 1e5 block on 1 rank (optional, --weak: it needs 2 idle cores).
+  of the 1e5 block on 1 rank (optional, --weak: it needs 2 idle cores);
+- two runs at once (no target) = the mean node-steps/s of the two 1-rank runs of the 1e5 block
+  started together / node-steps/s of the 1e5 block run alone: what 2 ranks would reach with
+  no halo and no waiting for each other, so that weak scaling can be read against it.
 Targets: force >= 3.5x old, RK4 >= 3x old and <= 130 bytes a node, Verlet >= 2.5x old and
 <= 90 bytes a node (the ratios on the median of the paired ratios, the bytes on the new
 build's median); size >= 0.80, nonlinear <= 2, fracture idle <= 1.05 (our reading of "no
@@ -60,6 +65,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import statistics
 import sys
@@ -72,7 +78,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import fracture_cost  # noqa: E402
 import iembench as ib  # noqa: E402
 import nonlinear_cost  # noqa: E402
-from throughput import block_case, run_nml  # noqa: E402
+from throughput import block_case, run_nml, run_pair  # noqa: E402
 
 MEASURES = ("force", "rk4", "verlet", "memory", "size", "nonlinear", "damped", "fracture", "weak")
 DEFAULT = MEASURES[:-1]
@@ -177,6 +183,9 @@ ROWS = (
     Measure("weak", "RK4 weak scaling, 2 ranks (1e5 nodes a rank)", ("rk4_1e5", "weak_rk4_2"),
             lambda g: step_rate(g("weak_rk4_2")) / 2.0 / step_rate(g("rk4_1e5")), ".3f",
             Target("new", ">=", 0.97)),
+    Measure("weak", "RK4 two 1-rank runs of the 1e5 block at once: rate / alone",
+            ("rk4_1e5", "pair_rk4_1e5"),
+            lambda g: step_rate(g("pair_rk4_1e5")) / step_rate(g("rk4_1e5")), ".3f", None),
 )
 
 
@@ -223,8 +232,8 @@ def write_cases(names: list[str], folder: Path, scale: float) -> dict[str, tuple
     nl_scene = nonlinear_cost.SCENE.read_text()
     for name in names:
         nml, ranks = folder / f"{name}.nml", 1
-        if name in ("rk4_1e5", "verlet_1e5"):
-            integ = name.split("_")[0]
+        if name in ("rk4_1e5", "verlet_1e5", "pair_rk4_1e5"):
+            integ = "verlet" if name == "verlet_1e5" else "rk4"
             text = block_case(1e5, (4e7 if integ == "rk4" else 8e7) * scale, "paper", integ)[0]
         elif name in ("rk4_1e6", "verlet_1e6"):
             # 200 nominal steps: about 100 (block_case's step is about half the stable step;
@@ -252,6 +261,21 @@ def write_cases(names: list[str], folder: Path, scale: float) -> dict[str, tuple
         nml.write_text(text)
         out[name] = (nml, ranks)
     return out
+
+
+def both(pair: list[dict]) -> dict:
+    """The report of two runs at once as one run's: the first run's, with the mean of their
+    node-steps/s (output left out) as its rate, and both reports under 'pair'."""
+    r = dict(pair[0], rate=statistics.mean(step_rate(p) for p in pair), output=0.0, pair=pair)
+    return r
+
+
+def two_cores() -> tuple[int, int]:
+    """The first two processors this process may run on."""
+    cpus = sorted(os.sched_getaffinity(0))
+    if len(cpus) < 2:
+        raise SystemExit("two runs at once need two processors; this process may use one")
+    return cpus[0], cpus[1]
 
 
 def main() -> int:
@@ -294,13 +318,17 @@ def main() -> int:
             for name in names:
                 nml, ranks = cases[name]
                 for which, exe in exes:
-                    r = run_nml(exe, nml, ranks, args.mpiexec, Path(tmp))
+                    if name == "pair_rk4_1e5":
+                        r = both(run_pair(exe, nml, args.mpiexec, Path(tmp), two_cores()))
+                    else:
+                        r = run_nml(exe, nml, ranks, args.mpiexec, Path(tmp))
                     if name.startswith("fr_") and not name.endswith("elastic") and \
                             fracture_cost.dissipated(Path(tmp) / f"{name}.h5") != 0.0:
                         raise SystemExit(f"{name}, {which}: a spring failed; the comparison is "
                                          "not of an idle fracture state")
                     runs.setdefault((name, which), []).append(r)
-                    print(f"# {rep + 1}/{repeat} {name} ({r['nodes']:,} nodes, {ranks} ranks), "
+                    how = "2 runs of 1 rank" if "pair" in r else f"{ranks} ranks"
+                    print(f"# {rep + 1}/{repeat} {name} ({r['nodes']:,} nodes, {how}), "
                           f"{which}: {step_rate(r):.3e} node-steps/s, loop {r['wall']:.2f} s",
                           file=sys.stderr, flush=True)
 

@@ -86,12 +86,36 @@ def run_nml(iem: str, nml: Path, ranks: int, mpiexec: str, folder: Path) -> dict
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if p.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}")
-    out = p.stdout
+    return parse_report(p.stdout, ranks, cpu, " ".join(cmd))
+
+
+def run_pair(iem: str, nml: Path, mpiexec: str, folder: Path, cores: tuple[int, int]) -> list[dict]:
+    """Run iem on a namelist twice at once, one rank each, each pinned to one of two cores
+    (in the subfolders pair0 and pair1 of folder, so that their output files differ), and
+    parse both end-of-run reports."""
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    cmd = [mpiexec, "-n", "1", "--bind-to", "none", iem, str(nml.resolve())]
+    procs = []
+    for i, core in enumerate(cores):
+        where = folder / f"pair{i}"
+        where.mkdir(exist_ok=True)
+        procs.append(subprocess.Popen(cmd, cwd=where, env=env, text=True, stdout=subprocess.PIPE,
+                                      stderr=subprocess.PIPE,
+                                      preexec_fn=lambda c=core: os.sched_setaffinity(0, {c})))
+    outs = [p.communicate() for p in procs]
+    for p, (out, err) in zip(procs, outs):
+        if p.returncode != 0:
+            raise SystemExit(f"{' '.join(cmd)} failed:\n{out[-2000:]}\n{err[-2000:]}")
+    return [parse_report(out, 1, float("nan"), " ".join(cmd)) for out, _ in outs]
+
+
+def parse_report(out: str, ranks: int, cpu: float, cmd: str) -> dict:
+    """iem's end-of-run performance report (the standard output of cmd, run on ranks ranks
+    with cpu seconds of processor time in all) as a dict."""
     num = r"([\d.]+(?:[eE][+-]?\d+)?)"
     perf = re.search(rf"performance:\s+{num} node-steps in\s+{num} s:\s+{num} node-steps/s", out)
     if perf is None:
-        raise SystemExit(f"{' '.join(cmd)}: no performance report (a static run?):\n"
-                         f"{out[-1000:]}")
+        raise SystemExit(f"{cmd}: no performance report (a static run?):\n{out[-1000:]}")
     line = out.split("time in ", 1)[1].splitlines()[0]
     shares = {k.strip(): float(v) for k, v in re.findall(r"([a-z][a-z ]*?) ([\d.]+)%", line)}
     mem = re.search(r"memory: peak ([\d.]+) MB per rank \(largest\), ([\d.]+) MB in all", out)

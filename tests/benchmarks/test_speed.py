@@ -85,3 +85,15 @@ def test_table_has_a_row_per_measure():
     lines = speed.table(rows).splitlines()
     assert len(lines) == 2 + len(speed.ROWS)
     assert all(line.count("|") == 7 for line in lines)
+
+
+def test_two_runs_at_once_are_read_against_the_run_alone():
+    pair = [report(rate=9.0e6, output=10.0), report(rate=6.0e6, output=0.0)]
+    r = speed.both(pair)
+    # the mean of the two rates with output left out: (1.0e7 + 0.6e7) / 2
+    assert speed.step_rate(r) == pytest.approx(8.0e6)
+    assert r["pair"] == pair
+    m = next(m for m in speed.ROWS if m.label.startswith("RK4 two 1-rank runs"))
+    assert m.target is None
+    runs = {"rk4_1e5": report(rate=1.0e7, output=0.0), "pair_rk4_1e5": r}
+    assert m.figure(runs.__getitem__) == pytest.approx(0.8)
