@@ -13,10 +13,10 @@ module iem_h5_inspect
 
 contains
 
-  !> Opens path read-only on this rank alone (HDF5's error printing off) and returns how many
-  !> frames and history samples it holds, the time of frame n_frames and history sample
-  !> n_samples (time and the energies of iem_h5_layout) when it holds them; stat /= 0 with msg when it is
-  !> not a readable iem output.
+  !> Opens path read-only on this rank alone (HDF5's error printing off) and returns how many frames
+  !> and history samples it holds, the time of frame n_frames and history sample n_samples (time and
+  !> the energies of iem_h5_layout) when it holds them; stat /= 0 with msg when it is not a readable
+  !> iem output.
   subroutine h5_output_inspect(path, n_frames, n_samples, have_frames, have_samples, &
       frame_time, sample, stat, msg)
     character(len=*), intent(in) :: path

@@ -46,7 +46,7 @@ contains
     type(cell_table_t) :: t
     integer, allocatable :: plan(:, :)
     integer :: j, n, c0, m
-    plan = cell_chunks(cell_nodes, kind)
+    allocate(plan, source=cell_chunks(cell_nodes, kind))
     t%n_cells = size(cell_nodes, 2)
     allocate(t%chunks(6, size(plan, 2)))
     t%chunks(1:5, :) = plan

@@ -51,7 +51,7 @@ contains
     type(shape_t) :: s
     s%kind = shape_poly
     s%material = material
-    s%v = v
+    allocate(s%v, source=v)
   end function shape_polygon
 
   !> True when the point (x, y) is inside shape s. Points on the boundary of a rectangle or

@@ -52,15 +52,14 @@ contains
     end if
   contains
 
-    !> evaluate for an RK4 stage without stiffness damping band by band (docs/architecture.md,
-    !> "The node pass band by band"): after each band's cells (with halo nodes: of the
-    !> interior cells, while the halo values travel), the nodes it completes take their
-    !> reactions, load powers, loads, mass damping powers and the stage's pass, once a pending
-    !> agreement on the last step has come (until then the bands' passes wait, the cells go
-    !> on); with halo nodes, the nodes of D then after the boundary cells. The sums over nodes are formed
-    !> after the pass in evaluate's order, so the results are bit for bit evaluate's (but
-    !> stage%total, a sum over the runs of nodes, which only says whether all the new values
-    !> are finite).
+    !> evaluate for an RK4 stage without stiffness damping band by band (docs/architecture.md, "The
+    !> node pass band by band"): after each band's cells (with halo nodes: of the interior cells,
+    !> while the halo values travel), the nodes it completes take their reactions, load powers,
+    !> loads, mass damping powers and the stage's pass, once a pending agreement on the last step
+    !> has come (until then the bands' passes wait, the cells go on); with halo nodes, the nodes of
+    !> D then after the boundary cells. The sums over nodes are formed after the pass in evaluate's
+    !> order, so the results are bit for bit evaluate's (but stage%total, a sum over the runs of
+    !> nodes, which only says whether all the new values are finite).
     subroutine evaluate_bands(fs)
       real(wp), intent(inout), contiguous :: fs(:, :)
       integer :: band, c1, nb, jb, js, passed

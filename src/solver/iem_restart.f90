@@ -13,11 +13,11 @@ submodule (iem_simulation) iem_restart
 
 contains
 
-  !> Check, before anything is written, that the checkpoint to continue from is whole and
-  !> belongs to this run: its header, exact size and checksum (every byte), this model, grid
-  !> and time step, the record layout of this run's checkpointed fields, and that output_file is the output it was written with and holds what it
-  !> covers. Refused (stat /= 0, msg naming &run restart and what is wrong) otherwise; nothing
-  !> is opened for writing. Collective.
+  !> Check, before anything is written, that the checkpoint to continue from is whole and belongs to
+  !> this run: its header, exact size and checksum (every byte), this model, grid and time step, the
+  !> record layout of this run's checkpointed fields, and that output_file is the output it was
+  !> written with and holds what it covers. Refused (stat /= 0, msg naming &run restart and what is
+  !> wrong) otherwise; nothing is opened for writing. Collective.
   module procedure check_restart
     character(len=:), allocatable :: what, path, why, out
     integer(i8) :: have(2)

@@ -71,7 +71,7 @@ contains
     real(wp) :: err, fast(2), xy(2)
     integer :: l, stat2
     logical :: warn, halt
-    character(len=:), allocatable :: where, msg2
+    character(len=:), allocatable :: where
     stat = 0
     msg = ''
     err = this%last_balance

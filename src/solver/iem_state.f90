@@ -74,10 +74,10 @@ contains
     end if
   end subroutine state_init
 
-  !> Exchange the halo of y and evaluate the rates at time t into st%acc (with the powers
-  !> p_ext1, p_damp1; the exchange overlaps the evaluation): the first stage of a step, kept apart so the caller can record the
-  !> energies and output of the state y, which this evaluation provides. y is an accepted
-  !> state: nonlinear springs commit their history to it.
+  !> Exchange the halo of y and evaluate the rates at time t into st%acc (with the powers p_ext1,
+  !> p_damp1; the exchange overlaps the evaluation): the first stage of a step, kept apart so the
+  !> caller can record the energies and output of the state y, which this evaluation provides. y is
+  !> an accepted state: nonlinear springs commit their history to it.
   subroutine state_rate(model, lat, halo, st, t)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat

@@ -81,12 +81,12 @@ contains
   end subroutine fast_stresses
 
   !> The branch-free loop of iem_nonlinear_springs' commit over n springs (as fast_stresses;
-  !> mv from fast_stresses): the work increments of the fast moves (mv < 2) added, the new state and curves after
-  !> the fast moves (mv < 2) as masing_commit makes them (a pushed reversal's point, R_(count)
-  !> = the committed point before, is stored by the caller), the others' as they were, into
-  !> the columns of nr (c_strain .. c_hi) and ni (c_count, c_dir), for the caller to copy
-  !> back (stored in place, gfortran 12 makes every unchanged value a masked store, which is
-  !> slow).
+  !> mv from fast_stresses): the work increments of the fast moves (mv < 2) added, the new
+  !> state and curves after the fast moves as masing_commit makes them (a pushed reversal's
+  !> point, R_(count) = the committed point before, is stored by the caller), the others' as
+  !> they were, into the columns of nr (c_strain .. c_hi) and ni (c_count, c_dir), for the
+  !> caller to copy back (stored in place, gfortran 12 makes every unchanged value a masked
+  !> store, which is slow).
   pure subroutine fast_commit(n, room, e, p, ldp, off, s, mv, e_c, s_c, dir, count, e_max_pos, &
                               e_max_neg, ps, e0, s0, hk, lo, hi, work, ldr, nr, ni)
     !> Spring k's constants are row off + k of p; nr and ni have leading dimension ldr >= n.
