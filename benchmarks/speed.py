@@ -266,8 +266,7 @@ def write_cases(names: list[str], folder: Path, scale: float) -> dict[str, tuple
 def both(pair: list[dict]) -> dict:
     """The report of two runs at once as one run's: the first run's, with the mean of their
     node-steps/s (output left out) as its rate, and both reports under 'pair'."""
-    r = dict(pair[0], rate=statistics.mean(step_rate(p) for p in pair), output=0.0, pair=pair)
-    return r
+    return dict(pair[0], rate=statistics.mean(step_rate(p) for p in pair), output=0.0, pair=pair)
 
 
 def two_cores() -> tuple[int, int]:

@@ -94,6 +94,7 @@ def run_pair(iem: str, nml: Path, mpiexec: str, folder: Path, cores: tuple[int, 
     (in the subfolders pair0 and pair1 of folder, so that their output files differ), and
     parse both end-of-run reports."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    # each mpiexec is started on its core and binds nothing: its rank keeps that core
     cmd = [mpiexec, "-n", "1", "--bind-to", "none", iem, str(nml.resolve())]
     procs = []
     for i, core in enumerate(cores):

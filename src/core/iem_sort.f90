@@ -80,7 +80,8 @@ contains
   end subroutine stable_sort_by
 
   !> An integer key in the order of the real x (not NaN): a < b exactly when
-  !> real_key(a) < real_key(b), and -0 and +0 give the same key.
+  !> real_key(a) < real_key(b), and -0 and +0 give the same key (where the run flushes
+  !> subnormals, a subnormal x keys as 0, as comparisons of x then order it).
   elemental integer(i8) function real_key(x)
     real(wp), intent(in) :: x
     real(wp) :: z
