@@ -149,7 +149,7 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     integer :: l, i, n, j, k, j0
-    logical :: in_group, in_quote
+    logical :: in_group, in_quote, doubled
     character :: q, c
     character(len=key_len) :: ident, sub
     type(nml_group_t), allocatable :: tmp(:)
@@ -181,7 +181,10 @@ contains
         c = this%lines(l)(i:i)
         if (in_quote) then
           if (c == q) then
-            if (i < n .and. this%lines(l)(i+1:i+1) == q) then
+            ! (a doubled quote; i + 1 <= n read only when i < n: .and. may evaluate both)
+            doubled = .false.
+            if (i < n) doubled = this%lines(l)(i+1:i+1) == q
+            if (doubled) then
               i = i + 1
             else
               in_quote = .false.

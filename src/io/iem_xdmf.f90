@@ -60,10 +60,10 @@ contains
     dot = index(h5_path, '.', back=.true.)
     ! A dot in a folder name or a leading dot (hidden file) is no extension; a file already
     ! named .xmf keeps its name and gets a second extension, so the sidecar never replaces it.
-    if (dot > slash + 1 .and. h5_path(dot:) /= '.xmf') then
-      xmf_path = h5_path(:dot - 1)//'.xmf'
-    else
-      xmf_path = h5_path//'.xmf'
+    ! (nested: Fortran's .and. may evaluate both operands, and h5_path(dot:) needs dot >= 1)
+    xmf_path = h5_path//'.xmf'
+    if (dot > slash + 1) then
+      if (h5_path(dot:) /= '.xmf') xmf_path = h5_path(:dot - 1)//'.xmf'
     end if
   end function xdmf_path_of
 

@@ -198,7 +198,7 @@ contains
     integer(i8), allocatable :: keys(:), sizes(:)
     integer(ip) :: mine(1)
     integer :: nranks, k, m, j
-    integer(i8) :: total
+    integer(i8) :: total, grown
 
     call MPI_Comm_size(comm, nranks)
     mine = int(n_mine, ip)
@@ -214,8 +214,10 @@ contains
     end if
     if (.not. allocated(this%all_pairs)) allocate(this%all_pairs(0))
     if (size(this%all_pairs, kind=i8) < total) then
+      ! (the new size taken before the old array goes: its size is undefined after)
+      grown = max(total, 2*size(this%all_pairs, kind=i8))
       deallocate(this%all_pairs)
-      allocate(this%all_pairs(max(total, 2*size(this%all_pairs, kind=i8))))
+      allocate(this%all_pairs(grown))
     end if
     call MPI_Gatherv(this%pairs, n_mine, mpi_i8(), this%all_pairs, n_of, displ, mpi_i8(), 0, &
                      comm)

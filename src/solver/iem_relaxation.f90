@@ -256,7 +256,7 @@ contains
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
-    real(wp), intent(inout) :: y(:, :)
+    real(wp), intent(inout), contiguous :: y(:, :)
     real(wp), intent(in) :: t_prev, t
     type(relax_result_t), intent(out) :: res
     real(wp) :: sums(5), level, s, p_ext, p_damp, f_half, ke, ke_old, rel, a1, a2, q

@@ -97,3 +97,14 @@ def test_two_runs_at_once_are_read_against_the_run_alone():
     assert m.target is None
     runs = {"rk4_1e5": report(rate=1.0e7, output=0.0), "pair_rk4_1e5": r}
     assert m.figure(runs.__getitem__) == pytest.approx(0.8)
+
+
+def test_weak_scaling_is_read_against_two_runs_at_once():
+    m = next(m for m in speed.ROWS if m.label.startswith("RK4 weak scaling / two runs"))
+    assert m.target is None
+    pair = speed.both([report(rate=8.0e6, output=0.0), report(rate=1.0e7, output=0.0)])
+    runs = {"weak_rk4_2": report(rate=1.44e7, output=0.0, ranks=2), "pair_rk4_1e5": pair}
+    # per rank 0.72e7 over the pair's mean 0.9e7
+    assert m.figure(runs.__getitem__) == pytest.approx(0.8)
+    # the 1-rank run alone does not enter it
+    assert "rk4_1e5" not in m.cases
