@@ -159,7 +159,9 @@ contains
   pure subroutine released_energy(k, lw, kap, e_old, hit, ep, s, diss)
     type(cell_constants_t), intent(in) :: k
     type(fracture_law_t), intent(in) :: lw
-    real(wp), intent(in) :: kap(12), e_old(8), ep(4), s(4)
+    real(wp), intent(in) :: kap(12), e_old(8)
+    ! (assumed shape: the kernel passes rows of its chunk arrays, 4 values each, uncopied)
+    real(wp), intent(in) :: ep(:), s(:)
     logical, intent(in) :: hit
     real(wp), intent(inout) :: diss
     real(wp) :: e0(8), e1(8), em(8), lam, fa(8), fb(8), fm(8), g(4), t(4), ea, eb, sa, sb, ds
@@ -232,8 +234,9 @@ contains
   !> shear term by the least of all eight factors.
   pure subroutine damaged_cell(k, ep, s, fe, fs, g, t)
     type(cell_constants_t), intent(in) :: k
-    real(wp), intent(in) :: ep(4), s(4), fe(4), fs(4)
-    real(wp), intent(out) :: g(4), t(4)
+    ! (4 values each; assumed shape: the kernel passes rows of its chunk arrays, uncopied)
+    real(wp), intent(in) :: ep(:), s(:), fe(:), fs(:)
+    real(wp), intent(out) :: g(:), t(:)
     real(wp) :: fp(4), fx, fy, fv, fg, mx, my, gm, v, cc
     integer :: q, qm, qp
     if (k%law == law_bending) then
