@@ -84,8 +84,9 @@ sec() { # NAME LIMIT COMMAND...: run a section if time is left, within LIMIT sec
 rate() { grep -h "performance:" "$@" | sed 's/.*s: *\([0-9.E+-]*\) node-steps.*/\1/'; }
 one() { # CORE DIR: one 1-rank run of ceil.nml pinned to CORE, in DIR
   mkdir -p "$2"
-  (cd "$2" && taskset -c "$1" mpirun $MPX_EXTRA -n 1 --bind-to none "$NEW" "$W/ceil.nml" \
-    > o.log 2>&1)
+  # (each its own TMPDIR: mpiruns started together race on a shared Open MPI session folder)
+  (cd "$2" && TMPDIR=$PWD taskset -c "$1" mpirun $MPX_EXTRA -n 1 --bind-to none "$NEW" \
+    "$W/ceil.nml" > o.log 2>&1)
 }
 many() { # LABEL CORE...: one run on each core at once; the median, min and max rate
   local label=$1; shift; rm -rf m; local pids=()

@@ -100,7 +100,11 @@ def run_pair(iem: str, nml: Path, mpiexec: str, folder: Path, cores: tuple[int, 
     for i, core in enumerate(cores):
         where = folder / f"pair{i}"
         where.mkdir(exist_ok=True)
-        procs.append(subprocess.Popen(cmd, cwd=where, env=env, text=True, stdout=subprocess.PIPE,
+        # each its own TMPDIR: two mpiruns started together would share Open MPI's session
+        # folder ($TMPDIR/ompi.<host>.<uid>) and can race on making it
+        env["TMPDIR"] = str(where.resolve())
+        procs.append(subprocess.Popen(cmd, cwd=where, env=dict(env), text=True,
+                                      stdout=subprocess.PIPE,
                                       stderr=subprocess.PIPE,
                                       preexec_fn=lambda c=core: os.sched_setaffinity(0, {c})))
     outs = [p.communicate() for p in procs]

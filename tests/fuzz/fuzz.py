@@ -308,6 +308,12 @@ def run_case(args, c: Case, base: Base, work: Path, limit: float) -> Result:
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
     env.setdefault("OMPI_MCA_odls_base_sigkill_timeout", "0")
+    # the run's own temporary folder: Open MPI makes and removes its session directories
+    # under $TMPDIR/ompi.<host>.<uid>, and two runs at once sharing that folder can race on it
+    # (orte_init failing with "A call to mkdir was unable to create ... File exists")
+    session = (work / "tmp" / f"c{c.index:06d}").resolve()
+    session.mkdir(parents=True, exist_ok=True)
+    env["TMPDIR"] = str(session)
     lock = OUTSIDE_LOCK if c.outside else None
     if lock:
         lock.acquire()
@@ -346,6 +352,7 @@ def run_case(args, c: Case, base: Base, work: Path, limit: float) -> Result:
     finally:
         if lock:
             lock.release()
+        shutil.rmtree(session, ignore_errors=True)
     return Result(c, p.returncode, seconds, timed_out, stderr,
                   out.decode("utf-8", "replace"), changes, problems, outcome, folder)
 

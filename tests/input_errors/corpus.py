@@ -27,6 +27,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -62,13 +63,18 @@ def run_case(args: argparse.Namespace, work: Path, nml_name: str, expect: str,
              timeout: float = 60) -> tuple[bool, str]:
     """Run iem on work/nml_name and judge the outcome; (passed, one-line report)."""
     before = snapshot(work)
+    # the run's own TMPDIR: Open MPI makes and removes its session directories under
+    # $TMPDIR/ompi.<host>.<uid>, and runs at once sharing that folder can race on it
+    session = tempfile.mkdtemp(prefix="iem-mpi-")
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
+               OMPI_MCA_rmaps_base_oversubscribe="1", TMPDIR=session)
     try:
         p = subprocess.run(mpi_command(args, 2, nml_name), cwd=work, env=env, text=True,
                            capture_output=True, timeout=timeout, errors="replace")
     except subprocess.TimeoutExpired:
         return False, f"{nml_name}: no answer within {timeout} s (a hang)"
+    finally:
+        shutil.rmtree(session, ignore_errors=True)
     after = snapshot(work)
     errors = [line for line in p.stderr.splitlines() if line.startswith("iem: error")]
     noise = [n for n in RUNTIME_NOISE if n in p.stderr or n in p.stdout]
