@@ -1,19 +1,21 @@
 #!/usr/bin/env bash
-# Issue 12's scaling and speed figures on a lent many-core machine, in one call of about
-# 7 minutes: run from the repository root there, after benchmarks/device_prepare.sh here,
-# carrying .devrun (docs/benchmarks.md, "Scaling"). Needs python3 with h5py and numpy, and
-# Open MPI's mpirun. Each section has a time limit inside a budget (BUDGET seconds, default
-# 450); what a section prints goes to $OUT/tables.md (its standard error to $OUT/err.txt),
-# everything to $OUT/log.txt, and speed.py's runs to $OUT/speed.json. Sections, in order:
+# Issue 12's scaling and speed figures on a lent many-core machine, in one call of at most
+# 9 minutes (give the call timeout_s 590): run from the repository root there, after
+# benchmarks/device_prepare.sh here, carrying .devrun (docs/benchmarks.md, "Scaling").
+# Needs python3 with h5py and numpy, and Open MPI's mpirun. Each section has a time limit
+# inside a budget (BUDGET seconds, default 540); what a section prints goes to
+# $OUT/tables.md (its standard error to $OUT/err.txt), everything to $OUT/log.txt, and
+# speed.py's runs to $OUT/speed.json. Sections, in order:
 #   machine   processor, cores, memory, MPI; which build runs (native where the processor
 #             has every feature in .devrun/native/flags, else x86-64-v3)
 #   ceiling   the machine's own limit for many ranks: independent 1-rank runs of the block of
 #             1e6/N nodes at once, one pinned to each core, against one run alone (so that
 #             strong scaling can be read against what the cores reach with no messages)
-#   strong_rk4_1..3, weak_rk4 (1e5 nodes a rank), weak2_rk4 (5e5 a rank, 2 ranks, 3 times),
-#   strong_verlet (3 times): benchmarks/throughput.py on 1 2 4 8 16 ranks (the cores present)
+#   strong_rk4_1..3, weak_rk4 (1e5 nodes a rank): benchmarks/throughput.py on 1 2 4 8 16
+#             ranks (those of them the processors allow)
 #   speed     benchmarks/speed.py --repeat 3, new against the baseline: size, force, rk4,
-#             verlet, memory, weak
+#             verlet, memory, weak (about 200 s on the 16-core machine lent on 2026-12-04)
+#   strong_verlet (3 times), weak2_rk4 (5e5 nodes a rank, 1 and 2 ranks, 3 times)
 # SCALE (default 1) scales the work of each run, for a dry run on a small machine.
 set -u
 PY=${PY:-python3}
@@ -21,7 +23,7 @@ OUT=${OUT:-/tmp/device-scaling}; mkdir -p "$OUT"
 D=$PWD/.devrun
 SCALE=${SCALE:-1}
 T0=$(date +%s)
-left() { echo $(( ${BUDGET:-450} - ($(date +%s) - T0) )); }
+left() { echo $(( ${BUDGET:-540} - ($(date +%s) - T0) )); }
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 PYTHONUNBUFFERED=1
 export LD_LIBRARY_PATH=$D/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
 [ -x "$D/v3/new/iem" ] ||
@@ -122,10 +124,10 @@ for rep in 1 2 3; do
   sec strong_rk4_$rep 150 $TP --ranks $RANKS --sizes 1e6 --work "$(work 2e8)"
 done
 sec weak_rk4 150 $TP --ranks $RANKS --sizes 1e5 --weak --work "$(work 1e8)"
-sec weak2_rk4 120 bash -c \
-  "for i in 1 2 3; do $TP --ranks 1 2 --sizes 5e5 --weak --work $(work 1e8); done"
-sec strong_verlet 90 bash -c \
-  "for i in 1 2 3; do $TP --ranks $RANKS --sizes 1e6 --work $(work 4e8) --integrator verlet; done"
 sec speed 240 $PY benchmarks/speed.py --iem "$NEW" --baseline "$OLD" --repeat 3 --mpiexec "$D/mpx" \
   --only size,force,rk4,verlet,memory,weak --save "$OUT/speed.json" ${SPEED_ARGS:-}
+sec strong_verlet 90 bash -c \
+  "for i in 1 2 3; do $TP --ranks $RANKS --sizes 1e6 --work $(work 4e8) --integrator verlet; done"
+sec weak2_rk4 120 bash -c \
+  "for i in 1 2 3; do $TP --ranks 1 2 --sizes 5e5 --weak --work $(work 1e8); done"
 echo "== done in $(( $(date +%s) - T0 )) s"
