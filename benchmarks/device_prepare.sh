@@ -11,8 +11,8 @@
 # Layout: .devrun/{native,v3}/{new,base}/iem, each with its build's CMakeCache.txt and
 # CMakeFiles/iem.dir/flags.make beside it (speed.py reports the compiler and flags from them),
 # .devrun/native/flags (the processor features -march=native enabled), .devrun/lib/,
-# .devrun/BUILT (the commits). About 2 minutes on
-# 2 cores. Builds use the project's Release options with IEM_BUILD_TESTS=OFF.
+# .devrun/BUILT (the commits). About 2 minutes on 2 cores. Builds use the project's Release
+# options with IEM_BUILD_TESTS=OFF.
 set -euo pipefail
 base_rev=${1:-f17bd0c}
 repo="$(git -C "$(dirname "${BASH_SOURCE[0]}")" rev-parse --show-toplevel)"

@@ -102,10 +102,8 @@ def run_pair(iem: str, nml: Path, mpiexec: str, folder: Path, cores: tuple[int, 
         where.mkdir(exist_ok=True)
         # each its own TMPDIR: two mpiruns started together would share Open MPI's session
         # folder ($TMPDIR/ompi.<host>.<uid>) and can race on making it
-        env["TMPDIR"] = str(where.resolve())
-        procs.append(subprocess.Popen(cmd, cwd=where, env=dict(env), text=True,
-                                      stdout=subprocess.PIPE,
-                                      stderr=subprocess.PIPE,
+        procs.append(subprocess.Popen(cmd, cwd=where, env=dict(env, TMPDIR=str(where.resolve())),
+                                      text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                       preexec_fn=lambda c=core: os.sched_setaffinity(0, {c})))
     outs = [p.communicate() for p in procs]
     for p, (out, err) in zip(procs, outs):
