@@ -148,7 +148,7 @@ contains
     class(nml_text_t), intent(inout) :: this
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    integer :: l, i, n, j, k, j0
+    integer :: l, i, n, j, k, j0, ns
     logical :: in_group, in_quote, doubled
     character :: q, c
     character(len=key_len) :: ident, sub
@@ -178,7 +178,7 @@ contains
       n = len_trim(this%lines(l))
       i = 1
       do while (i <= n)
-        c = this%lines(l)(i:i)
+        c = char_at(this%lines(l), i)
         if (in_quote) then
           if (c == q) then
             ! (a doubled quote; i + 1 <= n read only when i < n: .and. may evaluate both)
@@ -260,7 +260,8 @@ contains
                 if (this%lines(l)(k:k) == ')') exit
                 k = k + 1
               end do
-              sub = this%lines(l)(j0:min(k, n, j0 + key_len - 1))
+              ns = min(k, n, j0 + key_len - 1) - j0 + 1
+              sub(1:ns) = this%lines(l)(j0:j0 + ns - 1)
               k = k + 1
             end if
           end if
@@ -355,7 +356,7 @@ contains
     raw = ''
     if (l > this%n_lines) return
     n = len_trim(this%lines(l))
-    q = this%lines(l)(i:i)
+    q = char_at(this%lines(l), i)
     if (q /= "'" .and. q /= '"') then
       raw = this%value(g, k)
       return
@@ -432,7 +433,7 @@ contains
     end associate
     call next_nonblank(this, l, col, m, i)
     c = ' '
-    if (m <= this%n_lines) c = this%lines(m)(i:i)
+    if (m <= this%n_lines) c = char_at(this%lines(m), i)
     if (is_ident_start(c)) then
       ! a name followed by '=' is the next assignment: this one has no value
       j = i
@@ -484,6 +485,14 @@ contains
       if (c >= iachar('A') .and. c <= iachar('Z')) ident(k:k) = achar(c + 32)
     end do
   end subroutine read_ident
+
+  !> The character at position i of line (a function: gfortran's -Wcharacter-truncation takes
+  !> a one-character substring of an array component for the whole element).
+  pure character function char_at(line, i)
+    character(len=*), intent(in) :: line
+    integer, intent(in) :: i
+    char_at = line(i:i)
+  end function char_at
 
   pure logical function is_ident_start(c)
     character, intent(in) :: c

@@ -280,7 +280,7 @@ contains
     logical, intent(in), optional :: begun, ahead
     real(wp), intent(in), optional :: t_next
     real(wp) :: p_ext, p_damp, h, c, u_bc(size(model%bc_node))
-    integer :: l, n, q, bad
+    integer :: l, n, bad
     logical :: fuse, start, next
 
     n = lat%n_owned

@@ -11,6 +11,8 @@
  * does not wait on memory where the state has left the core's caches (docs/architecture.md,
  * "The force kernel"). Built without AVX2, iem_kernel_rows_simd() is 0 and the Fortran loops
  * run. Arrays are Fortran's column-major: y(4, 0:m), w(0:ld-1, 2), f(2, 0:m), fx(ldf, 4). */
+#include "iem_cache_hint.h"
+
 #if defined(__AVX2__)
 #include <immintrin.h>
 #define IEM_SIMD 1
@@ -26,12 +28,12 @@ int iem_kernel_rows_simd(void) { return IEM_SIMD; }
  * nodes' values are asked for, two cache lines (four nodes) at a time. */
 void iem_gather_row4(int m, const double *y, int r0, int ld, double *w) {
 #if IEM_SIMD
-  const double *ahead = y + 4 * (m + 1);
+  const double *ahead = y; /* the next m + 1 nodes start 4 (m + 1) values on */
   int i = 0;
   y += r0;
   for (; i + 3 <= m; i += 4) {
-    __builtin_prefetch(ahead + 4 * i, 0, 3);
-    __builtin_prefetch(ahead + 4 * i + 8, 0, 3);
+    IEM_HINT(ahead, 8 * (4 * (m + 1) + 4 * i), 0);
+    IEM_HINT(ahead, 8 * (4 * (m + 1) + 4 * i + 8), 0);
     __m256d ac = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(y + 4 * i)),
                                       _mm_loadu_pd(y + 4 * i + 8), 1);
     __m256d bd = _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(y + 4 * i + 4)),
@@ -40,7 +42,7 @@ void iem_gather_row4(int m, const double *y, int r0, int ld, double *w) {
     _mm256_storeu_pd(w + ld + i, _mm256_unpackhi_pd(ac, bd));
   }
   for (; i <= m; i++) {
-    __builtin_prefetch(ahead + 4 * i, 0, 3);
+    IEM_HINT(ahead, 8 * (4 * (m + 1) + 4 * i), 0);
     w[i] = y[4 * i];
     w[ld + i] = y[4 * i + 1];
   }
@@ -81,7 +83,7 @@ void iem_scatter_rows(int m, double *fb, double *ft, const double *fx, const dou
   ft[1] += y4[0];
   j = 1;
   for (; j + 3 <= m - 1; j += 4) {
-    __builtin_prefetch(ft + 2 * (m + 1) + 2 * j, 1, 3);
+    IEM_HINT(ft, 8 * (2 * (m + 1) + 2 * j), 1);
     add4(fb + 2 * j, _mm256_loadu_pd(x2 + j - 1), _mm256_loadu_pd(y2 + j - 1),
          _mm256_loadu_pd(x1 + j), _mm256_loadu_pd(y1 + j));
     add4(ft + 2 * j, _mm256_loadu_pd(x3 + j - 1), _mm256_loadu_pd(y3 + j - 1),

@@ -16,6 +16,7 @@
  * s_rev(depth, n). */
 #include <stdint.h>
 
+#include "iem_cache_hint.h"
 #include "iem_masing_simd.h"
 
 #if defined(__AVX2__)
@@ -244,8 +245,8 @@ void iem_masing_block(int n, int depth, int accept, const double *e, const doubl
     /* the stacks of the springs 32 ahead asked for (a cache hint, no value changed): where
      * the springs' state has left the caches, their tops are the loads the loop waits on */
     for (int q = 0; q < 4; q++) {
-      __builtin_prefetch(er + (int64_t)(stack_ahead + q) * depth, 0, 3);
-      __builtin_prefetch(sr + (int64_t)(stack_ahead + q) * depth, 0, 3);
+      IEM_HINT(er, 8 * (int64_t)(stack_ahead + q) * depth, 0);
+      IEM_HINT(sr, 8 * (int64_t)(stack_ahead + q) * depth, 0);
     }
     __m256d et, st, eb;
     stack_tops(er, sr, count + i, depth, &et, &st, &eb);
