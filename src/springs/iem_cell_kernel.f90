@@ -23,7 +23,7 @@ module iem_cell_kernel
   use iem_exact_sum, only: exact_sum_t
   use iem_cell_table, only: cell_table_t, cell_table
   use iem_kernel_rows, only: gather_block, gather_row, gather_rows, add_node_forces, &
-                             add_routed_forces, add_block_forces
+                             add_routed_forces, add_block_forces, set_aside
   implicit none
   private
   public :: cell_energy, cell_force, cell_forces, cell_strain_measures
@@ -143,7 +143,10 @@ contains
     type(edge_row_t), intent(inout), optional, target :: rows(:)
     !> Routed chunks (iem_cell_split): route_at(j) > 0 when chunk j's corner forces are routed:
     !> corner q of its cell i by route(route_at(j) + 4*(i - 1) + q - 1): 0 added to f, r > 0
-    !> stored in side(:, r), < 0 dropped; route_at(j) = 0: added to f as usual.
+    !> stored in side(:, r), < 0 dropped; route_at(j) < 0 when only a few are set aside, the
+    !> others added to f as usual: route(a) = n, then n pairs (4*(i - 1) + q, r > 0) in
+    !> route(a + 1 .. a + 2n), a = -route_at(j), corner q of cell i stored in side(:, r);
+    !> route_at(j) = 0: added to f as usual.
     integer, intent(in), optional, contiguous :: route_at(:), route(:)
     real(wp), intent(inout), optional, contiguous :: side(:, :)
     !> The exact sum the counted cells' energies are added to (then energy is 0).
@@ -386,10 +389,14 @@ contains
       if (routed(ic)) then
         call cells%chunk_corners(ic, cq, m)
         call add_routed_forces(m, cq, route(route_at(ic):), fx, fy, f, side)
-      else if (consec) then
-        call add_block_forces(m, f(:, b0:b0 + m), f(:, t0:t0 + m), fx, fy)
       else
-        call add_node_forces(m, bn, tn, fx, fy, f)
+        ! the corners set aside go to their side slots, and add nothing (+0) to f
+        if (aside(ic)) call set_aside(route(-route_at(ic):), fx, fy, side)
+        if (consec) then
+          call add_block_forces(m, f(:, b0:b0 + m), f(:, t0:t0 + m), fx, fy)
+        else
+          call add_node_forces(m, bn, tn, fx, fy, f)
+        end if
       end if
       if (sums .or. damped .or. keep_terms) then
         ! the counted cells: those whose first corner is owned
@@ -439,6 +446,13 @@ contains
       routed = .false.
       if (present(route_at)) routed = route_at(j) > 0
     end function routed
+
+    !> Whether some of chunk j's corner forces are set aside.
+    pure logical function aside(j)
+      integer, intent(in) :: j
+      aside = .false.
+      if (present(route_at)) aside = route_at(j) < 0
+    end function aside
 
     !> Chunk j: its first cell, its number of cells, whether its node rows are consecutive,
     !> its first bottom and top nodes.

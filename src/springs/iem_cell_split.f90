@@ -6,8 +6,9 @@
 !> boundary cell (a node of D) gets each of its cells' corner forces in a side slot of its
 !> own, ordered by cell, and the slots are summed in that order after both phases; every
 !> other node has interior cells only, whose forces are added to it in cell order as before.
-!> Only the chunks of cells with a corner in D are routed (corner by corner): the interior cells
-!> that have one form chunks of their own, so the others keep the kernel's plain path.
+!> The boundary chunks are routed corner by corner; the interior chunks keep the kernel's plain
+!> path, and those with corners in D set them aside: each such corner force goes to its side
+!> slot, and the chunk adds +0 for it to the node's force (which is +0 until the slots' sum).
 module iem_cell_split
   use iem_kinds, only: wp, i8
   use iem_sort, only: sort_i8
@@ -23,11 +24,13 @@ module iem_cell_split
     logical :: active = .false.
     !> The interior and the boundary chunks (iem_cell_table's tables), each in cell order.
     type(cell_table_t) :: cells_in, cells_bd
-    !> Per chunk of cells_in and cells_bd: where its routes start in route (0: not routed, its
-    !> corner forces go to f as usual).
+    !> Per chunk of cells_bd: where its routes start in route (0: not routed, its corner
+    !> forces go to f as usual); per chunk of cells_in: minus where its list of the corners it
+    !> sets aside starts in route (0: none). iem_cell_kernel's cell_forces' route_at.
     integer, allocatable :: at_in(:), at_bd(:)
-    !> Per corner of a routed chunk's cells: 0 added to f, r > 0 side slot r, < 0 dropped
-    !> (a halo node, whose force is not used).
+    !> Per corner of a boundary chunk's cells: 0 added to f, r > 0 side slot r, < 0 dropped
+    !> (a halo node, whose force is not used); for an interior chunk with corners in D, their
+    !> number n, then n pairs (4*(i - 1) + q: corner q of its cell i; its side slot).
     integer, allocatable :: route(:)
     !> The owned nodes of D (ascending); node d's slots are 4(d-1)+1 .. 4(d-1)+d_cells(d),
     !> one for each of its cells, in cell order.
@@ -52,7 +55,6 @@ contains
     type(cell_table_t) :: split
     integer(i8), allocatable :: dl(:)
     integer :: nc, c, q, j, k, n, nd, na, n_in, n_bd, n_route, at, c0, m, d
-    logical :: touch
 
     this%active = n_local > n_owned
     if (allocated(this%at_in)) deallocate(this%at_in, this%at_bd, this%route, this%d_node, &
@@ -95,14 +97,14 @@ contains
     this%d_node = int(dl(1:nd))
     this%d_cells = 0
     this%side = 0.0_wp
-    ! the chunks, of one kind each, in cell order: interior cells with no corner in D, those
-    ! with one (routed), boundary cells (routed); so a routed chunk holds only cells that
-    ! touch D, and the others keep the kernel's plain path
+    ! the chunks, of one kind each, in cell order: interior cells and boundary cells. A
+    ! boundary chunk is routed corner by corner; an interior chunk with corners in D takes the
+    ! plain path but for those corners, which it sets aside into their side slots
     allocate(near(nc), kind(nc))
     do c = 1, nc
       near(c) = touches(c)
     end do
-    kind = merge(2, merge(1, 0, near), bd)
+    kind = merge(2, 0, bd)
     split = cell_table(cell_nodes, kind)
     plan = split%chunks
     n_in = 0
@@ -113,10 +115,12 @@ contains
       m = plan(2, j)
       if (bd(c0)) then
         n_bd = n_bd + 1
+        if (any(near(c0:c0 + m - 1))) n_route = n_route + 4*m
       else
         n_in = n_in + 1
+        k = count_in_d(c0, m)
+        if (k > 0) n_route = n_route + 1 + 2*k
       end if
-      if (near(c0)) n_route = n_route + 4*m
     end do
     allocate(this%at_in(n_in), this%at_bd(n_bd), this%route(n_route), cnt(nd), &
              is_bd(size(plan, 2)))
@@ -127,8 +131,12 @@ contains
     do j = 1, size(plan, 2)
       c0 = plan(1, j)
       m = plan(2, j)
-      touch = near(c0)
-      if (touch) then
+      is_bd(j) = bd(c0)
+      if (bd(c0)) then
+        n_bd = n_bd + 1
+        this%at_bd(n_bd) = 0
+        if (.not. any(near(c0:c0 + m - 1))) cycle
+        this%at_bd(n_bd) = at
         ! cells in ascending order, so each node's slots come in cell order
         do c = c0, c0 + m - 1
           do q = 1, 4
@@ -144,16 +152,27 @@ contains
             end if
           end do
         end do
-      end if
-      is_bd(j) = bd(c0)
-      if (bd(c0)) then
-        n_bd = n_bd + 1
-        this%at_bd(n_bd) = merge(at, 0, touch)
+        at = at + 4*m
       else
         n_in = n_in + 1
-        this%at_in(n_in) = merge(at, 0, touch)
+        this%at_in(n_in) = 0
+        k = count_in_d(c0, m)
+        if (k == 0) cycle
+        ! the corners in D (owned: an interior cell has no halo corner), set aside
+        this%at_in(n_in) = -at
+        this%route(at) = k
+        at = at + 1
+        do c = c0, c0 + m - 1
+          do q = 1, 4
+            d = find(cell_nodes(q, c))
+            if (d == 0) cycle
+            cnt(d) = cnt(d) + 1
+            this%route(at) = 4*(c - c0) + q
+            this%route(at + 1) = 4*(d - 1) + cnt(d)
+            at = at + 2
+          end do
+        end do
       end if
-      if (touch) at = at + 4*m
     end do
     this%d_cells = cnt
     this%cells_in = split%subset(.not. is_bd)
@@ -179,6 +198,19 @@ contains
         end if
       end do
     end function find
+
+    !> The corners in D of the cells c0 .. c0 + m - 1.
+    pure integer function count_in_d(c0, m) result(n)
+      integer, intent(in) :: c0, m
+      integer :: cc, qq
+      n = 0
+      do cc = c0, c0 + m - 1
+        if (.not. near(cc)) cycle
+        do qq = 1, 4
+          if (find(cell_nodes(qq, cc)) > 0) n = n + 1
+        end do
+      end do
+    end function count_in_d
 
     !> Whether cell c has a corner in D.
     pure logical function touches(c)

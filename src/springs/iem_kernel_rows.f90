@@ -10,7 +10,7 @@ module iem_kernel_rows
   implicit none
   private
   public :: gather_block, gather_row, gather_rows, add_node_forces, add_routed_forces
-  public :: add_block_forces
+  public :: add_block_forces, set_aside
 
 contains
 
@@ -110,6 +110,25 @@ contains
       end do
     end do
   end subroutine add_routed_forces
+
+  !> The corner forces that a chunk's list ex sets aside stored in their side slots and
+  !> cleared in fx, fy (so that adding the chunk's forces adds +0 for them): ex(1) = n, then
+  !> n pairs (4*(i - 1) + q, r): corner q of cell i to side(:, r).
+  pure subroutine set_aside(ex, fx, fy, side)
+    integer, intent(in) :: ex(:)
+    real(wp), intent(inout) :: fx(chunk, 4), fy(chunk, 4)
+    real(wp), intent(inout), contiguous :: side(:, :)
+    integer :: e, i, q, r
+    do e = 1, ex(1)
+      i = (ex(2*e) - 1)/4 + 1
+      q = ex(2*e) - 4*(i - 1)
+      r = ex(2*e + 1)
+      side(1, r) = fx(i, q)
+      side(2, r) = fy(i, q)
+      fx(i, q) = 0.0_wp
+      fy(i, q) = 0.0_wp
+    end do
+  end subroutine set_aside
 
   !> add_node_forces for consecutively numbered node rows: the forces fb, ft of the bottom
   !> and top rows' nodes 0..m.
