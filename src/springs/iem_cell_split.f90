@@ -24,9 +24,9 @@ module iem_cell_split
     logical :: active = .false.
     !> The interior and the boundary chunks (iem_cell_table's tables), each in cell order.
     type(cell_table_t) :: cells_in, cells_bd
-    !> Per chunk of cells_bd: where its routes start in route (0: not routed, its corner
-    !> forces go to f as usual); per chunk of cells_in: minus where its list of the corners it
-    !> sets aside starts in route (0: none). iem_cell_kernel's cell_forces' route_at.
+    !> Per chunk of cells_bd: where its routes start in route; per chunk of cells_in: minus
+    !> where its list of the corners it sets aside starts in route (0: none). iem_cell_kernel's
+    !> cell_forces' route_at.
     integer, allocatable :: at_in(:), at_bd(:)
     !> Per corner of a boundary chunk's cells: 0 added to f, r > 0 side slot r, < 0 dropped
     !> (a halo node, whose force is not used); for an interior chunk with corners in D, their
@@ -115,7 +115,7 @@ contains
       m = plan(2, j)
       if (bd(c0)) then
         n_bd = n_bd + 1
-        if (any(near(c0:c0 + m - 1))) n_route = n_route + 4*m
+        n_route = n_route + 4*m
       else
         n_in = n_in + 1
         k = count_in_d(c0, m)
@@ -133,11 +133,10 @@ contains
       m = plan(2, j)
       is_bd(j) = bd(c0)
       if (bd(c0)) then
+        ! (every corner of a boundary cell is in D, or a halo node) routed, cells in ascending
+        ! order, so each node's slots come in cell order
         n_bd = n_bd + 1
-        this%at_bd(n_bd) = 0
-        if (.not. any(near(c0:c0 + m - 1))) cycle
         this%at_bd(n_bd) = at
-        ! cells in ascending order, so each node's slots come in cell order
         do c = c0, c0 + m - 1
           do q = 1, 4
             d = find(cell_nodes(q, c))
