@@ -132,9 +132,9 @@ contains
     character(len=256) :: iomsg
     call check_keys(text, g, keys, label, stat, msg)
     if (stat /= 0) return
-    ! a quoted value too long for its variable before the read: gfortran's runtime (in a
-    ! checked build) would warn about it first
-    call check_strings(text, g, keys, label, stat, msg, long_only=.true.)
+    ! a quoted value too long for its variable before the read (gfortran's runtime, in a
+    ! checked build, would warn as it cuts it)
+    call check_strings(text, g, keys, label, .true., stat, msg)
     if (stat /= 0) return
     call text%chunk(g, chunk)
     stat = try(chunk, iomsg)
@@ -143,7 +143,7 @@ contains
       stat = 1
       return
     end if
-    call check_strings(text, g, keys, label, stat, msg)
+    call check_strings(text, g, keys, label, .false., stat, msg)
   end subroutine read_group
 
   !> Check the variable names of group g against the table.
@@ -173,22 +173,19 @@ contains
     end associate
   end subroutine check_keys
 
-  !> Refuse a string variable of group g written without quotes (Fortran would take 1.5e3
-  !> or a misspelt .true. as a string) or longer than the characters it is kept in; with
-  !> long_only, only a quoted one that is too long.
-  subroutine check_strings(text, g, keys, label, stat, msg, long_only)
+  !> Refuse a string variable of group g longer than the characters it is kept in (before_read:
+  !> before the namelist read, which would cut it), or written without quotes (after the read:
+  !> Fortran would take 1.5e3 or a misspelt .true. as a string).
+  subroutine check_strings(text, g, keys, label, before_read, stat, msg)
     type(nml_text_t), intent(in) :: text
     integer, intent(in) :: g
     type(key_t), intent(in) :: keys(:)
     character(len=*), intent(in) :: label
+    logical, intent(in) :: before_read
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
-    logical, intent(in), optional :: long_only
     character(len=:), allocatable :: raw
     integer :: k, j, n
-    logical :: quotes
-    quotes = .true.
-    if (present(long_only)) quotes = .not. long_only
     stat = 0
     msg = ''
     associate(grp => text%groups(g))
@@ -203,11 +200,10 @@ contains
           if (raw(1:1) == "'" .or. raw(1:1) == '"') n = len(raw) - 2 - &
             count_doubled(raw(2:len(raw) - 1), raw(1:1))
         end if
-        if (n < 0) then
-          if (.not. quotes) cycle
+        if (n < 0 .and. .not. before_read) then
           call bad(label, trim(grp%keys(k)), raw, "must be a quoted string ('...')", stat, msg)
           return
-        else if (n > keys(j)%len) then
+        else if (n > keys(j)%len .and. before_read) then
           call bad(label, trim(grp%keys(k)), raw, 'is longer than '//itoa(keys(j)%len)// &
                    ' characters', stat, msg)
           return
