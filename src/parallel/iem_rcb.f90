@@ -1,6 +1,6 @@
 !> Recursive coordinate bisection of a grid's nodes: the (nx+1) x (ny+1) node index rectangle
-!> is cut, across its longer side, into boxes holding as many nodes as their share of the
-!> parts, until each part has its box. Every rank computes the same boxes from four numbers,
+!> is cut (along its grid rows unless that makes long or thin parts: row_cut_ratio) into boxes
+!> holding as many nodes as their share of the parts, until each part has its box. Every rank computes the same boxes from four numbers,
 !> so the owner of any node is known without a partition array over the whole body.
 !> The weighted variant cuts the same way by the weights of the nodes that exist, held spread
 !> over the ranks: one reduction of a histogram along the cut axis per tree node.
@@ -10,6 +10,15 @@ module iem_rcb
   implicit none
   private
   public :: rcb_t
+
+  !> A box is cut along a grid row (across j) unless it is at least row_cut_ratio times longer
+  !> along i than along j, or it has fewer than row_cut_rows rows a part; then across its longer
+  !> side. A cut across the rows costs each rank beside it a one-cell chunk of the force kernel
+  !> a row, a cut along a row only routed corners in chunks of full length; but a cut along a
+  !> row can only fall between rows, so a part of few long rows would be ill balanced
+  !> (docs/architecture.md, "Partition and build").
+  real, parameter, public :: row_cut_ratio = 8.0
+  integer, parameter, public :: row_cut_rows = 32
 
   !> The bisection tree and each part's box of node indices (i0, i1, j0, j1, inclusive).
   type :: rcb_t
@@ -57,7 +66,7 @@ contains
         return
       end if
       nl = np/2
-      if (i1 - i0 >= j1 - j0) then
+      if (cuts_across_i(i0, i1, j0, j1, np)) then
         this%axis(node) = 1
         c = i0 + nint(real(i1 - i0 + 1)*real(nl)/real(np))
         this%cut(node) = c
@@ -122,8 +131,8 @@ contains
         return
       end if
       nl = np/2
-      ! across the longer side (so the axis spans one index only when the box is one node)
-      ax = merge(1, 2, i1 - i0 >= j1 - j0)
+      ! the axis row_cut_ratio picks (it spans one index only when the box is one node)
+      ax = merge(1, 2, cuts_across_i(i0, i1, j0, j1, np))
       this%axis(node) = ax
       lo = merge(i0, j0, ax == 1)
       hi = merge(i1, j1, ax == 1)
@@ -171,6 +180,17 @@ contains
       this%high(node) = b
     end subroutine split_w
   end subroutine rcb_init_weighted
+
+  !> Whether the box [i0, i1] x [j0, j1] of np parts is cut across i (its cut line crossing
+  !> every grid row), else across j.
+  pure logical function cuts_across_i(i0, i1, j0, j1, np) result(yes)
+    integer, intent(in) :: i0, i1, j0, j1, np
+    if (j1 - j0 + 1 >= row_cut_rows*np) then
+      yes = real(i1 - i0) >= row_cut_ratio*real(j1 - j0)
+    else
+      yes = i1 - i0 >= j1 - j0
+    end if
+  end function cuts_across_i
 
   !> (Re)allocate the tree of n_parts leaves.
   subroutine alloc_tree(this, n_parts)
