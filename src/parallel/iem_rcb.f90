@@ -1,7 +1,8 @@
 !> Recursive coordinate bisection of a grid's nodes: the (nx+1) x (ny+1) node index rectangle
 !> is cut (along its grid rows unless that makes long or thin parts: row_cut_ratio) into boxes
-!> holding as many nodes as their share of the parts, until each part has its box. Every rank computes the same boxes from four numbers,
-!> so the owner of any node is known without a partition array over the whole body.
+!> holding as many nodes as their share of the parts, until each part has its box. Every rank
+!> computes the same boxes from four numbers, so the owner of any node is known without a
+!> partition array over the whole body.
 !> The weighted variant cuts the same way by the weights of the nodes that exist, held spread
 !> over the ranks: one reduction of a histogram along the cut axis per tree node.
 module iem_rcb
