@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A short side-by-side of the new build against the baseline on a lent many-core machine, in
-# one call of about 3 minutes (give the call timeout_s 240): run from the repository root
+# one call of about 3 minutes (give the call timeout_s 300): run from the repository root
 # there, after benchmarks/device_prepare.sh [BASELINE_REV] here, carrying .devrun. For a
 # change whose effect shows at many ranks, when too little device time is left for
 # benchmarks/device_scaling.sh. Prints, in order (each section within its time limit):
@@ -9,6 +9,8 @@
 #   rk4_2      RK4, 2e5 nodes on 2 ranks (the 2-rank weak case's block), 5 runs each
 #   strong     the new build's strong scaling of 1e6 nodes, RK4, on 1 2 4 8 16 ranks
 #   weak       the new build's weak scaling, 1e5 nodes a rank, 1 and 16 ranks
+#   balance_16 the new build, RK4, 1e6 nodes (392 steps), 16 ranks: load balancing every 50
+#              steps (&run balance_interval) against none, 3 interleaved runs each
 # Output goes to $OUT/log.txt too. Needs python3 and Open MPI's mpirun.
 set -u
 OUT=${OUT:-/tmp/device-compare}; mkdir -p "$OUT"
@@ -34,4 +36,10 @@ sec verlet_16 40 --baseline "$OLD" --ranks 16 --sizes 1e6 --work 4e8 --repeat 3 
 sec rk4_2 45 --baseline "$OLD" --ranks 2 --sizes 2e5 --work 1e8 --repeat 5
 sec strong 45 --ranks 1 2 4 8 16 --sizes 1e6 --work 2e8
 sec weak 25 --ranks 1 16 --sizes 1e5 --weak --work 1e8
+W=$(mktemp -d)
+python3 benchmarks/throughput.py --sizes 1e6 --work 8e8 --write-case "$W/plain.nml" > /dev/null
+sed "s/  integrator = 'rk4'/  integrator = 'rk4', balance_interval = 50/" "$W/plain.nml" \
+  > "$W/balanced.nml"
+sec balance_16 60 --input "$W/plain.nml" --input "$W/balanced.nml" --ranks 16 --repeat 3
+rm -rf "$W"
 echo "== done in $(( $(date +%s) - T0 )) s"

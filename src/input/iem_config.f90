@@ -35,10 +35,16 @@ module iem_config
     character(len=path_len) :: restart = ''
     character(len=path_len) :: output_file = 'iem_out.h5'
     logical :: overwrite = .false.
-    !> Recompute the partition at the top of this step (METIS with the nodes of the left half
-    !> of the grid ten times heavier) and move the state with it: the migration that load
-    !> balancing will use, exposed to test it (0: never).
+    !> Recompute the partition at the top of this step (the bisection with the nodes of the
+    !> left half of the grid ten times heavier) and move the state with it: the migration
+    !> that load balancing uses, exposed to test it (0: never).
     integer :: repartition_step = 0
+    !> Load balancing: every balance_interval steps (0: never) the ranks compare their
+    !> computing time since the last look, and when the slowest exceeds the mean by more than
+    !> balance_tolerance (a fraction) the partition is recomputed with each rank's part in
+    !> proportion to its measured speed (nodes per second of computing).
+    integer :: balance_interval = 0
+    real(wp) :: balance_tolerance = 0.05_wp
   end type run_config_t
 
   !> The background grid of rectangular cells and what fills it (&geometry): the rectangle

@@ -22,13 +22,14 @@ contains
     character(len=16) :: analysis, integrator
     real(wp) :: t_end, dt, dt_safety, output_interval, history_interval, progress_interval
     real(wp) :: energy_warn, energy_stop, checkpoint_interval
-    integer :: check_interval, repartition_step
+    integer :: check_interval, repartition_step, balance_interval
+    real(wp) :: balance_tolerance
     character(len=path_len) :: output_file, checkpoint_file, restart
     logical :: overwrite, allow_unstable_dt
     namelist /run/ analysis, integrator, t_end, dt, dt_safety, output_interval, &
       history_interval, progress_interval, output_file, overwrite, energy_warn, energy_stop, &
       check_interval, allow_unstable_dt, checkpoint_interval, checkpoint_file, restart, &
-      repartition_step
+      repartition_step, balance_interval, balance_tolerance
     analysis = cfg%run%analysis; integrator = cfg%run%integrator
     t_end = unset_real; dt = cfg%run%dt
     dt_safety = cfg%run%dt_safety; output_interval = cfg%run%output_interval
@@ -37,6 +38,7 @@ contains
     energy_warn = cfg%run%energy_warn; energy_stop = cfg%run%energy_stop
     check_interval = cfg%run%check_interval; allow_unstable_dt = cfg%run%allow_unstable_dt
     repartition_step = cfg%run%repartition_step
+    balance_interval = cfg%run%balance_interval; balance_tolerance = cfg%run%balance_tolerance
     checkpoint_interval = cfg%run%checkpoint_interval
     checkpoint_file = cfg%run%checkpoint_file; restart = cfg%run%restart
     iomsg = ''
@@ -49,6 +51,7 @@ contains
     cfg%run%energy_warn = energy_warn; cfg%run%energy_stop = energy_stop
     cfg%run%check_interval = check_interval; cfg%run%allow_unstable_dt = allow_unstable_dt
     cfg%run%repartition_step = repartition_step
+    cfg%run%balance_interval = balance_interval; cfg%run%balance_tolerance = balance_tolerance
     cfg%run%checkpoint_interval = checkpoint_interval
     cfg%run%checkpoint_file = checkpoint_file; cfg%run%restart = restart
   end subroutine parse_run
@@ -56,7 +59,7 @@ contains
   !> The table of &run's variables, kept in r.
   function run_keys(r) result(keys)
     type(run_config_t), intent(in), target :: r
-    type(key_t) :: keys(18)
+    type(key_t) :: keys(20)
     keys = [key('analysis', r%analysis, allowed='dynamic static'), &
       key('integrator', r%integrator, allowed='rk4 verlet'), &
       key('t_end', r%t_end, need=': the end time in s', range='> 0', unit=' [s]'), &
@@ -73,7 +76,9 @@ contains
       key('checkpoint_interval', r%checkpoint_interval, range='>= 0', &
           unit=' [s] (0: checkpoints only on SIGTERM/SIGUSR1)'), &
       key('checkpoint_file', r%checkpoint_file), key('restart', r%restart), &
-      key('repartition_step', r%repartition_step, range='>= 0', unit=' [steps] (0: never)')]
+      key('repartition_step', r%repartition_step, range='>= 0', unit=' [steps] (0: never)'), &
+      key('balance_interval', r%balance_interval, range='>= 0', unit=' [steps] (0: never)'), &
+      key('balance_tolerance', r%balance_tolerance, range='>= 0', unit=' (a fraction)')]
   end function run_keys
 
   !> Check, parse and validate group g (&run) of the input into the configuration.
@@ -86,7 +91,7 @@ contains
     character(len=line_len), allocatable :: chunk(:)
     character(len=256) :: iomsg
     character(len=*), parameter :: label = '&run'
-    type(key_t) :: keys(18)
+    type(key_t) :: keys(20)
     keys = run_keys(cfg%run)
     call read_group(text, g, keys, label, try_run, chunk, stat, msg)
     if (stat /= 0) return
@@ -114,8 +119,8 @@ contains
         call bad(label, 'energy_warn', rtoa(r%energy_warn), 'must not exceed energy_stop = '// &
                  rtoa(r%energy_stop), stat, msg)
       else
-        call check_values(keys, 'checkpoint_interval check_interval repartition_step', label, &
-                          stat, msg)
+        call check_values(keys, 'checkpoint_interval check_interval repartition_step '// &
+                          'balance_interval balance_tolerance', label, stat, msg)
       end if
       if (stat /= 0) return
       if (len_trim(r%output_file) == 0) then
@@ -150,7 +155,7 @@ contains
     character(len=*), parameter :: vars(*) = [character(len=19) :: 'integrator', 'dt', &
       'dt_safety', 'output_interval', 'history_interval', 'energy_warn', 'energy_stop', &
       'check_interval', 'allow_unstable_dt', 'checkpoint_interval', 'checkpoint_file', 'restart', &
-      'repartition_step']
+      'repartition_step', 'balance_interval', 'balance_tolerance']
     integer :: k
     name = ''
     associate(grp => text%groups(g))

@@ -29,10 +29,11 @@ contains
   !> The halo carries width values a node (default 4: u and v). A full rectangle without
   !> weights is bisected by node counts alone; any other body, or given node weights
   !> (weight(x, y) >= 1), by the weighted bisection of its existing nodes, from the strips of
-  !> a numbered body (strip, from number_body; classified again when absent). rcb returns the
+  !> a numbered body (strip, from number_body; classified again when absent). With share(0:P-1)
+  !> > 0 the ranks' parts are in proportion to it (load balancing). rcb returns the
   !> bisection (the owner of any node). Collective; stat /= 0 with msg on every rank when it
   !> fails (a failed allocation included).
-  subroutine decompose(body, comm, lat, halo, stat, msg, width, weight, strip, rcb)
+  subroutine decompose(body, comm, lat, halo, stat, msg, width, weight, strip, rcb, share)
     type(body_t), intent(in) :: body
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(inout) :: lat
@@ -43,6 +44,7 @@ contains
     procedure(node_weight), optional :: weight
     type(body_strip_t), intent(inout), optional :: strip
     type(rcb_t), intent(out), optional :: rcb
+    real(wp), intent(in), optional :: share(0:)
     integer(ip), allocatable :: own(:)
     integer(i8), allocatable :: hits(:), cells(:), wts(:), lc(:), ln(:), nodes(:)
     integer, allocatable :: ij(:, :)
@@ -58,7 +60,7 @@ contains
     stat = 0
     msg = ''
     if (body%uniform .and. .not. present(weight)) then
-      call bis%init(body%grid%nx + 1, body%grid%ny + 1, nranks)
+      call bis%init(body%grid%nx + 1, body%grid%ny + 1, nranks, share)
       if (bis%balanced(2)) then
         ! every row is full: left of column c0 lie c0 cells and c0 nodes
         allocate(lc(0:bis%box(4, rank) - bis%box(3, rank) + 2), &
@@ -85,7 +87,7 @@ contains
       if (stat /= 0) return
     end if
     call strip_points(body, st, ij, wts, weight)
-    call bis%init_weighted(body%grid%nx + 1, body%grid%ny + 1, nranks, ij, wts, comm)
+    call bis%init_weighted(body%grid%nx + 1, body%grid%ny + 1, nranks, ij, wts, comm, share)
     allocate(nodes(0:nranks - 1))
     nodes = 0
     do k = 1, size(wts)

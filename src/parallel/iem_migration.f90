@@ -30,11 +30,12 @@ contains
 
   !> Recompute the partition and move everything to it: the weighted bisection of the body's
   !> nodes with the node weights weight(x, y) (without: the body's own partition, see
-  !> decompose); lat and halo are replaced by the new lattice and halo plan (width values a
-  !> node, default the old plan's), every field of reg is migrated (see migrate). Collective.
+  !> decompose), the ranks' parts in proportion to share(0:P-1) when given; lat and halo are
+  !> replaced by the new lattice and halo plan (width values a node, default the old plan's),
+  !> every field of reg is migrated (see migrate). Collective.
   !> stat /= 0 with msg on every rank when it fails: lat, halo and reg are then unchanged,
   !> except after a failure inside the migration itself (reg is then undefined).
-  subroutine repartition(body, comm, lat, halo, reg, stat, msg, weight, width)
+  subroutine repartition(body, comm, lat, halo, reg, stat, msg, weight, width, share)
     type(body_t), intent(in) :: body
     type(MPI_Comm), intent(in) :: comm
     type(local_lattice_t), intent(inout) :: lat
@@ -44,6 +45,7 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     procedure(node_weight), optional :: weight
     integer, intent(in), optional :: width
+    real(wp), intent(in), optional :: share(0:)
     integer(ip), allocatable :: owner(:)
     type(local_lattice_t) :: lat2
     type(halo_t) :: halo2
@@ -52,7 +54,7 @@ contains
 
     w = halo%width
     if (present(width)) w = width
-    call decompose(body, comm, lat2, halo2, stat, msg, w, weight=weight, rcb=bis)
+    call decompose(body, comm, lat2, halo2, stat, msg, w, weight=weight, rcb=bis, share=share)
     if (stat /= 0) return
     ! the new owner of every node of the old lattice
     allocate(owner(lat%n_local))

@@ -7,7 +7,7 @@
 !> over the ranks: one reduction of a histogram along the cut axis per tree node.
 module iem_rcb
   use mpi_f08, only: MPI_Comm, MPI_Allreduce, MPI_IN_PLACE, MPI_SUM, MPI_INTEGER8
-  use iem_kinds, only: i8
+  use iem_kinds, only: i8, wp
   implicit none
   private
   public :: rcb_t
@@ -40,10 +40,12 @@ module iem_rcb
 
 contains
 
-  !> Bisect the node rectangle [0, ni-1] x [0, nj-1] into n_parts boxes.
-  subroutine rcb_init(this, ni, nj, n_parts)
+  !> Bisect the node rectangle [0, ni-1] x [0, nj-1] into n_parts boxes (of node counts in
+  !> proportion to share(0:n_parts-1) > 0 when given, else equal).
+  subroutine rcb_init(this, ni, nj, n_parts, share)
     class(rcb_t), intent(inout) :: this
     integer, intent(in) :: ni, nj, n_parts
+    real(wp), intent(in), optional :: share(0:)
     integer :: k
     this%n_parts = n_parts
     this%n_tree = 0
@@ -69,13 +71,21 @@ contains
       nl = np/2
       if (cuts_across_i(i0, i1, j0, j1, np)) then
         this%axis(node) = 1
-        c = i0 + nint(real(i1 - i0 + 1)*real(nl)/real(np))
+        if (present(share)) then
+          c = i0 + nint(real(i1 - i0 + 1, wp)*low_share(share, p0, np))
+        else
+          c = i0 + nint(real(i1 - i0 + 1)*real(nl)/real(np))
+        end if
         this%cut(node) = c
         call split(i0, c - 1, j0, j1, p0, nl, a)
         call split(c, i1, j0, j1, p0 + nl, np - nl, b)
       else
         this%axis(node) = 2
-        c = j0 + nint(real(j1 - j0 + 1)*real(nl)/real(np))
+        if (present(share)) then
+          c = j0 + nint(real(j1 - j0 + 1, wp)*low_share(share, p0, np))
+        else
+          c = j0 + nint(real(j1 - j0 + 1)*real(nl)/real(np))
+        end if
         this%cut(node) = c
         call split(i0, i1, j0, c - 1, p0, nl, a)
         call split(i0, i1, c, j1, p0 + nl, np - nl, b)
@@ -90,13 +100,15 @@ contains
   !> by the ranks of comm (each point on one rank). Collective; every rank gets the same tree.
   !> Each cut is the one (first index of the high side) that gives the low side the weight
   !> nearest to its share of the parts (ties: the lower cut); total weight times n_parts must
-  !> fit in integer(i8).
-  subroutine rcb_init_weighted(this, ni, nj, n_parts, ij, w, comm)
+  !> fit in integer(i8). With share(0:n_parts-1) > 0 the parts' weights are in proportion to
+  !> it instead of equal (the low side's share of a cut is its parts' share of the box's).
+  subroutine rcb_init_weighted(this, ni, nj, n_parts, ij, w, comm, share)
     class(rcb_t), intent(inout) :: this
     integer, intent(in) :: ni, nj, n_parts
     integer, intent(in) :: ij(:, :)
     integer(i8), intent(in) :: w(:)
     type(MPI_Comm), intent(in) :: comm
+    real(wp), intent(in), optional :: share(0:)
     integer(i8) :: total(1)
     integer :: root
     this%n_parts = n_parts
@@ -121,6 +133,7 @@ contains
       integer, intent(out) :: node
       integer(i8), allocatable :: h(:)
       integer(i8) :: t, wl, d, best
+      real(wp) :: f, e_best
       integer :: nl, ax, lo, hi, c, cc, a, b, q
       this%n_tree = this%n_tree + 1
       node = this%n_tree
@@ -157,16 +170,30 @@ contains
         ! along both axes keeps its node on the low side
         c = lo + 1
         wl = h(lo)
-        best = abs(wl*np - t*nl)
         d = wl
-        do cc = lo + 2, hi
-          d = d + h(cc - 1)
-          if (abs(d*np - t*nl) < best) then
-            best = abs(d*np - t*nl)
-            c = cc
-            wl = d
-          end if
-        end do
+        if (present(share)) then
+          ! (the same rule in real arithmetic: low side nearest f times the box's weight)
+          f = low_share(share, p0, np)
+          e_best = abs(real(wl, wp) - f*real(t, wp))
+          do cc = lo + 2, hi
+            d = d + h(cc - 1)
+            if (abs(real(d, wp) - f*real(t, wp)) < e_best) then
+              e_best = abs(real(d, wp) - f*real(t, wp))
+              c = cc
+              wl = d
+            end if
+          end do
+        else
+          best = abs(wl*np - t*nl)
+          do cc = lo + 2, hi
+            d = d + h(cc - 1)
+            if (abs(d*np - t*nl) < best) then
+              best = abs(d*np - t*nl)
+              c = cc
+              wl = d
+            end if
+          end do
+        end if
         deallocate(h)
       end if
       this%cut(node) = c
@@ -192,6 +219,14 @@ contains
       yes = i1 - i0 >= j1 - j0
     end if
   end function cuts_across_i
+
+  !> The share of the low side of a box of the np parts p0 .. p0 + np - 1 cut in two (its
+  !> np/2 parts' share of all np).
+  pure real(wp) function low_share(share, p0, np) result(f)
+    real(wp), intent(in) :: share(0:)
+    integer, intent(in) :: p0, np
+    f = sum(share(p0:p0 + np/2 - 1))/sum(share(p0:p0 + np - 1))
+  end function low_share
 
   !> (Re)allocate the tree of n_parts leaves.
   subroutine alloc_tree(this, n_parts)

@@ -105,6 +105,9 @@ module iem_simulation
     !> The last history sample written (time and the five energies) and the time of the last
     !> frame: a checkpoint records them to recognise its output on a restart.
     real(wp) :: last_sample(7) = 0.0_wp, last_frame_time = 0.0_wp
+    !> Load balancing: this rank's computing seconds (force evaluation and state updates) at
+    !> the last look.
+    real(wp) :: balance_mark = 0.0_wp
   contains
     procedure :: setup => simulation_setup
     procedure :: run => simulation_run
@@ -206,15 +209,27 @@ module iem_simulation
       type(simulation_t), intent(inout) :: this
     end subroutine initial_velocity
 
-    !> Recompute the partition at step k (METIS with new node weights) and move every node's
-    !> state and every cell's history to its new rank; rebuild the model, the state arrays,
-    !> the probes' places and the output's selections for the new lattice. Collective.
-    module subroutine repartition_run(this, k, stat, msg)
+    !> Recompute the partition at step k (the bisection with new node weights, or with the
+    !> ranks' parts in proportion to share) and move every node's state and every cell's
+    !> history to its new rank; rebuild the model, the state arrays, the probes' places and
+    !> the output's selections for the new lattice. Collective.
+    module subroutine repartition_run(this, k, stat, msg, share)
       type(simulation_t), intent(inout) :: this
       integer(i8), intent(in) :: k
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
+      real(wp), intent(in), optional :: share(0:)
     end subroutine repartition_run
+
+    !> Load balancing at step k: compare the ranks' computing time since the last look and,
+    !> when the slowest exceeds the mean by more than balance_tolerance, repartition with each
+    !> rank's part in proportion to its speed (repartition_run). Collective.
+    module subroutine balance_run(this, k, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine balance_run
 
     !> Create the output file, or reopen that of the interrupted run when continuing one.
     module subroutine open_output(this, stat, msg)
@@ -432,6 +447,14 @@ contains
           end if
           call repartition_run(this, k, stat, msg)
           if (stat /= 0) return
+        else if (balance_due(this, k)) then
+          call this%integ%settle(this%st, accepted)
+          if (.not. accepted) then
+            call stop_rejected(this, k, t, stat, msg)
+            return
+          end if
+          call balance_run(this, k, stat, msg)
+          if (stat /= 0) return
         end if
       end if
       ! a history sample at this step; the cells' energies only for the states one reads
@@ -487,6 +510,16 @@ contains
     call report_performance(this, MPI_Wtime() - wall0)
   end subroutine run_dynamic
 
+  !> Whether the ranks look at their balance at the top of step k (balance_interval, more
+  !> than one rank, not the repartition step).
+  pure logical function balance_due(this, k)
+    type(simulation_t), intent(in) :: this
+    integer(i8), intent(in) :: k
+    balance_due = this%cfg%run%balance_interval > 0 .and. this%n_ranks > 1 .and. k > 0 .and. &
+                  k /= int(this%cfg%run%repartition_step, i8)
+    if (balance_due) balance_due = mod(k, int(this%cfg%run%balance_interval, i8)) == 0
+  end function balance_due
+
   !> Whether step k (at t; the step before it at t_prev) takes a history sample.
   pure logical function sample_due(this, k, t_prev, t)
     type(simulation_t), intent(in) :: this
@@ -508,12 +541,14 @@ contains
   !> Whether nothing reads the state of step k (at t; the step before it at t_prev) before
   !> step k + 1 starts from it: k is not the last step, and at k the loop of run_dynamic
   !> takes no history sample, writes no frame, does not look for a checkpoint and does not
-  !> repartition (the integrator may then leave the state part way into step k + 1).
+  !> repartition or look at the balance (the integrator may then leave the state part way
+  !> into step k + 1).
   pure logical function quiet_step(this, k, t_prev, t) result(quiet)
     type(simulation_t), intent(in) :: this
     integer(i8), intent(in) :: k
     real(wp), intent(in) :: t_prev, t
-    quiet = k < this%n_steps .and. k /= int(this%cfg%run%repartition_step, i8)
+    quiet = k < this%n_steps .and. k /= int(this%cfg%run%repartition_step, i8) .and. &
+            .not. balance_due(this, k)
     if (quiet) quiet = .not. (sample_due(this, k, t_prev, t) .or. frame_due(this, k, t_prev, t) &
                               .or. checkpoint_looks(this, k, t_prev, t))
   end function quiet_step

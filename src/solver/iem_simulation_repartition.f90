@@ -3,13 +3,16 @@
 !> weighted bisection recomputes the partition (with new node weights), the fields move with
 !> their nodes and cells (iem_migration), and what derives from the lattice
 !> (the model's supports, loads and masses, the probes' places, the output's selections) is
-!> rebuilt from it. The trajectory and the history are bitwise those of a run that is not
-!> repartitioned (forces are summed per node in cell order, energies are exact sums).
+!> rebuilt from it; load balancing (balance_run) repartitions so with the ranks' parts in
+!> proportion to their measured speeds. The trajectory and the history are bitwise those of
+!> a run that is not repartitioned (forces are summed per node in cell order, energies are
+!> exact sums).
 submodule (iem_simulation) iem_simulation_repartition
   use iem_migration, only: repartition
   use iem_exact_sum, only: exact_sum_t
   use iem_kinds, only: ip
-  use mpi_f08, only: MPI_SUM
+  use iem_timers, only: timer_total, t_force, t_update
+  use mpi_f08, only: MPI_SUM, MPI_Allgather, MPI_DOUBLE_PRECISION
   implicit none
 
   !> The x below which left_heavy weighs a node 10 (set by repartition_run before it
@@ -36,12 +39,17 @@ contains
     end if
     old_owned = this%lat%owned_gids()
 
-    ! the new partition: the bisection with the nodes of the left half of the grid ten times
-    ! heavier than the rest, so that many nodes change rank (the costs that load balancing
-    ! will measure take this place later)
-    heavy_below_x = 0.5_wp*this%grid%nx*this%grid%lx
-    call repartition(this%body, this%comm, this%lat, this%halo, reg, stat, msg, &
-                     weight=left_heavy, width=ns)
+    ! the new partition: with share, the body's own bisection with the ranks' parts in
+    ! proportion to it; else the bisection with the nodes of the left half of the grid ten
+    ! times heavier than the rest, so that many nodes change rank
+    if (present(share)) then
+      call repartition(this%body, this%comm, this%lat, this%halo, reg, stat, msg, width=ns, &
+                       share=share)
+    else
+      heavy_below_x = 0.5_wp*this%grid%nx*this%grid%lx
+      call repartition(this%body, this%comm, this%lat, this%halo, reg, stat, msg, &
+                       weight=left_heavy, width=ns)
+    end if
     if (stat /= 0) then
       msg = 'repartition at step '//itoa(k)//': '//msg
       return
@@ -106,11 +114,45 @@ contains
       end if
     end do
     call MPI_Allreduce(MPI_IN_PLACE, moved, 1, MPI_INTEGER, MPI_SUM, this%comm)
-    call log_info('repartitioned at step '//itoa(k)//' (bisection with new node weights): '// &
-                  itoa(moved(1))//' of '//itoa(this%body%n_nodes)//' nodes changed rank')
+    if (present(share)) then
+      call log_info('balanced at step '//itoa(k)//' (parts in proportion to the ranks'' '// &
+                    'speeds): '//itoa(moved(1))//' of '//itoa(this%body%n_nodes)// &
+                    ' nodes changed rank')
+    else
+      call log_info('repartitioned at step '//itoa(k)//' (bisection with new node weights): '// &
+                    itoa(moved(1))//' of '//itoa(this%body%n_nodes)//' nodes changed rank')
+    end if
     call reg%free()
 
   end procedure repartition_run
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure balance_run
+    real(wp) :: mine(2), mean
+    real(wp), allocatable :: all(:, :), share(:)
+    real(wp) :: now
+
+    stat = 0
+    msg = ''
+    ! this rank's computing since the last look (waits for other ranks count as halo
+    ! exchange, not here) and its owned nodes; every rank gets every rank's
+    now = timer_total(t_force) + timer_total(t_update)
+    mine = [now - this%balance_mark, real(this%lat%n_owned, wp)]
+    this%balance_mark = now
+    allocate(all(2, 0:this%n_ranks - 1), share(0:this%n_ranks - 1))
+    call MPI_Allgather(mine, 2, MPI_DOUBLE_PRECISION, all, 2, MPI_DOUBLE_PRECISION, this%comm)
+    mean = sum(all(1, :))/real(this%n_ranks, wp)
+    if (.not. (maxval(all(1, :)) > (1.0_wp + this%cfg%run%balance_tolerance)*mean)) return
+    if (any(.not. (all(1, :) > 0.0_wp))) return
+    ! each rank's speed (nodes per second of computing): its share of the new partition,
+    ! kept within half and twice the mean, so that a burst of noise cannot starve a rank
+    share = all(2, :)/all(1, :)
+    mean = sum(share)/real(this%n_ranks, wp)
+    share = min(max(share, 0.5_wp*mean), 2.0_wp*mean)
+    call repartition_run(this, k, stat, msg, share)
+    ! the new partition's time starts now
+    this%balance_mark = timer_total(t_force) + timer_total(t_update)
+  end procedure balance_run
 
   !> Weight of a node in the new partition: 10 left of heavy_below_x, else 1.
   pure integer(i8) function left_heavy(x, y)

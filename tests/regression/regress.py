@@ -137,7 +137,10 @@ def cmd_ranks(args: argparse.Namespace) -> None:
 def cmd_repartition(args: argparse.Namespace) -> None:
     """A run repartitioned at --step (&run repartition_step: the bisection with new node
     weights, the state and the springs' history moved with their nodes and cells) gives bitwise the history
-    and frames of the same run left on its first partition, on each rank count."""
+    and frames of the same run left on its first partition, on each rank count. With
+    --balance N the run is load-balanced instead (balance_interval = N, balance_tolerance = 0:
+    it repartitions at every look where the ranks' computing times differ, with parts in
+    proportion to their speeds) and must have moved nodes at one look at least."""
     work = scratch("repartition_" + Path(args.case).stem + sub_tag(args.sub))
     for n in args.ranks:
         runs = {}
@@ -145,7 +148,9 @@ def cmd_repartition(args: argparse.Namespace) -> None:
             nml = with_output(Path(args.case), work / f"{tag}{n}.nml", f"{tag}{n}.h5")
             substitute(nml, args.sub)
             if tag == "moved":
-                text, k = re.subn(r"^&run\b", f"&run\n  repartition_step = {args.step}",
+                what = (f"balance_interval = {args.balance}, balance_tolerance = 0.0"
+                        if args.balance else f"repartition_step = {args.step}")
+                text, k = re.subn(r"^&run\b", f"&run\n  {what}",
                                   nml.read_text(), count=1, flags=re.M)
                 if k != 1:
                     raise SystemExit(f"{nml}: no &run group")
@@ -155,10 +160,18 @@ def cmd_repartition(args: argparse.Namespace) -> None:
                 return
             runs[tag] = (h5py.File(work / f"{tag}{n}.h5", "r"), p.stdout + p.stderr)
         (a, _), (b, log) = runs["plain"], runs["moved"]
-        moved = re.search(r"repartitioned at step (\d+) .*: (\d+) of (\d+) nodes changed rank", log)
-        check(moved is not None and int(moved.group(2)) > 0,
-              f"{n} ranks: repartitioned at step {args.step}, "
-              f"{moved.group(2) if moved else '?'} nodes changed rank")
+        if args.balance:
+            looks = [int(m) for m in re.findall(r"balanced at step \d+ .*: (\d+) of \d+ nodes "
+                                                r"changed rank", log)]
+            check(any(m > 0 for m in looks),
+                  f"{n} ranks: balanced {len(looks)} times, "
+                  f"{sum(m > 0 for m in looks)} of them moving nodes ({sum(looks)} in all)")
+        else:
+            moved = re.search(r"repartitioned at step (\d+) .*: (\d+) of (\d+) nodes changed rank",
+                              log)
+            check(moved is not None and int(moved.group(2)) > 0,
+                  f"{n} ranks: repartitioned at step {args.step}, "
+                  f"{moved.group(2) if moved else '?'} nodes changed rank")
         names = []
         a.visititems(lambda name, obj: names.append(name) if isinstance(obj, h5py.Dataset) else None)
         names = [x for x in names if x.startswith(("history/", "frames/"))]
@@ -500,6 +513,8 @@ def main() -> int:
                     help="allowed range of static deflection / Timoshenko")
     ap.add_argument("--step", type=int, default=100,
                     help="repartition check: the step at which the partition is recomputed")
+    ap.add_argument("--balance", type=int, default=0,
+                    help="repartition check: load-balance every BALANCE steps instead")
     ap.add_argument("--tolerance", type=float, default=1e-8,
                     help="relaxation tolerance of the convergence check's static runs")
     args = ap.parse_args()
