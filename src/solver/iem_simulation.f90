@@ -439,21 +439,18 @@ contains
       if (k > k_first) then
         call checkpoint_if_due(this, k, t, t_prev, stat, msg)
         if (stat /= 0) return
-        if (k == int(this%cfg%run%repartition_step, i8)) then
+        if (k == int(this%cfg%run%repartition_step, i8) .or. balance_due(this, k)) then
+          ! (the last step must stand before the state moves)
           call this%integ%settle(this%st, accepted)
           if (.not. accepted) then
             call stop_rejected(this, k, t, stat, msg)
             return
           end if
-          call repartition_run(this, k, stat, msg)
-          if (stat /= 0) return
-        else if (balance_due(this, k)) then
-          call this%integ%settle(this%st, accepted)
-          if (.not. accepted) then
-            call stop_rejected(this, k, t, stat, msg)
-            return
+          if (k == int(this%cfg%run%repartition_step, i8)) then
+            call repartition_run(this, k, stat, msg)
+          else
+            call balance_run(this, k, stat, msg)
           end if
-          call balance_run(this, k, stat, msg)
           if (stat /= 0) return
         end if
       end if
