@@ -128,7 +128,7 @@ contains
 
   !> Documented at its interface in iem_simulation.f90.
   module procedure balance_run
-    real(wp) :: mine(2), mean
+    real(wp) :: mine(2), mean_time, mean_share
     real(wp), allocatable :: all(:, :), share(:)
     real(wp) :: now
 
@@ -141,14 +141,14 @@ contains
     this%balance_mark = now
     allocate(all(2, 0:this%n_ranks - 1), share(0:this%n_ranks - 1))
     call MPI_Allgather(mine, 2, MPI_DOUBLE_PRECISION, all, 2, MPI_DOUBLE_PRECISION, this%comm)
-    mean = sum(all(1, :))/real(this%n_ranks, wp)
-    if (.not. (maxval(all(1, :)) > (1.0_wp + this%cfg%run%balance_tolerance)*mean)) return
+    mean_time = sum(all(1, :))/real(this%n_ranks, wp)
+    if (.not. (maxval(all(1, :)) > (1.0_wp + this%cfg%run%balance_tolerance)*mean_time)) return
     if (any(.not. (all(1, :) > 0.0_wp))) return
     ! each rank's speed (nodes per second of computing): its share of the new partition,
     ! kept within half and twice the mean, so that a burst of noise cannot starve a rank
     share = all(2, :)/all(1, :)
-    mean = sum(share)/real(this%n_ranks, wp)
-    share = min(max(share, 0.5_wp*mean), 2.0_wp*mean)
+    mean_share = sum(share)/real(this%n_ranks, wp)
+    share = min(max(share, 0.5_wp*mean_share), 2.0_wp*mean_share)
     call repartition_run(this, k, stat, msg, share)
     ! the new partition's time starts now
     this%balance_mark = timer_total(t_force) + timer_total(t_update)
