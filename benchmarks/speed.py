@@ -15,7 +15,10 @@ repository root, after building both):
 
 The cases (1 rank unless said; `block N` is benchmarks/throughput.py's clamped 2:1 block of
 about N nodes, plane stress, paper's cell, edge load, at about 0.9 of the stable step):
-- RK4 and Verlet blocks of 1e5 nodes (101,025), about 200 and 400 steps;
+- RK4 and Verlet blocks of 1e5 nodes (101,025), about 200 and 400 steps; for the force
+  also the RK4 block with the bending-corrected cell, and an RK4 block of 1.37e5 grid nodes
+  with 8 round holes (radius 0.15 on a 4 x 2 pattern of pitch 0.5 of the 2 x 1 block: 28 %
+  of its cells void, a body of 100,475 nodes; the holes end the chunks of the rows they cut);
 - RK4 and Verlet blocks of 1e6 nodes (1,001,820), about 100 steps (memory, size; fewer
   would weigh a run's fixed costs, such as its first evaluation and its two history samples,
   more at 1e6 than in the longer runs of 1e5);
@@ -40,7 +43,9 @@ of that time in each part, the peak resident memory VmHWM of every rank):
   1e6 nodes as in the 200-step runs of 1e5);
 - force (cells/s of the force alone) = force evaluations in the time loop x cells / time in
   force evaluation (its share of the loop's wall time); RK4 evaluates 4 times a step; cells
-  of the block = nx*ny; measured on the RK4 block of 1e5 nodes;
+  = the body's cells as iem reports them (nx*ny for a block, without the void ones for the
+  block with holes); measured on the RK4 blocks of 1e5 nodes, the paper's cell, the
+  bending-corrected one, and the paper's cell with holes;
 - bytes per node = slope of the peak resident memory (`memory: peak ... MB per rank`, MB =
   2^20 bytes) between the blocks of 1e5 and 1e6 nodes on 1 rank, RK4 and Verlet;
 - size ratio = node-steps/s at 1e6 nodes / node-steps/s at 1e5 (RK4, Verlet);
@@ -140,6 +145,10 @@ class Measure:
 ROWS = (
     Measure("force", "force: cells/s of the force alone (RK4, block 1e5)", ("rk4_1e5",),
             lambda g: force_rate(g("rk4_1e5"), "rk4"), ".3e", Target("ratio", ">=", 3.5)),
+    Measure("force", "force, bending-corrected cell (RK4, block 1e5)", ("rk4_bending_1e5",),
+            lambda g: force_rate(g("rk4_bending_1e5"), "rk4"), ".3e", Target("ratio", ">=", 3.5)),
+    Measure("force", "force, body of 1e5 nodes with 8 round holes (RK4)", ("rk4_holes_1e5",),
+            lambda g: force_rate(g("rk4_holes_1e5"), "rk4"), ".3e", Target("ratio", ">=", 3.5)),
     Measure("rk4", "RK4 node-steps/s (block 1e5)", ("rk4_1e5",),
             lambda g: step_rate(g("rk4_1e5")), ".3e", Target("ratio", ">=", 3.0)),
     Measure("verlet", "Verlet node-steps/s (block 1e5)", ("verlet_1e5",),
@@ -233,6 +242,15 @@ def table(rows: list[tuple[Measure, list[float], list[float]]]) -> str:
 # cases
 # ---------------------------------------------------------------------------------------------
 
+def with_holes(text: str) -> str:
+    """A block case (2 x 1) with 8 round holes of radius 0.15 cut out (void), centred on a
+    4 x 2 pattern of pitch 0.5: 28 % of the cells void, the rows' chunks ended at the holes."""
+    holes = "".join(f"&shape\n  name = 'hole{4 * j + i + 1}', kind = 'circle', "
+                    f"center = {0.25 + 0.5 * i}, {0.25 + 0.5 * j}, radius = 0.15, "
+                    "material = 'void'\n/\n" for j in range(2) for i in range(4))
+    return text.replace("&bc", holes + "&bc", 1)
+
+
 def write_cases(names: list[str], folder: Path, scale: float) -> dict[str, tuple[Path, int]]:
     """Write the namelist of each case into folder: name -> (namelist, ranks)."""
     out = {}
@@ -242,6 +260,12 @@ def write_cases(names: list[str], folder: Path, scale: float) -> dict[str, tuple
         if name in ("rk4_1e5", "verlet_1e5", "pair_rk4_1e5"):
             integ = "verlet" if name == "verlet_1e5" else "rk4"
             text = block_case(1e5, (4e7 if integ == "rk4" else 8e7) * scale, "paper", integ)[0]
+        elif name == "rk4_bending_1e5":
+            text = block_case(1e5, 4e7 * scale, "bending", "rk4")[0]
+        elif name == "rk4_holes_1e5":
+            # a grid of 1.37e5 nodes, so that the body, 72 % of it, has about 1e5 nodes as
+            # the other blocks (a smaller body would sit better in the caches)
+            text = with_holes(block_case(1.37e5, 4e7 * scale / 0.72, "paper", "rk4")[0])
         elif name in ("rk4_1e6", "verlet_1e6"):
             # 200 nominal steps: about 100 (block_case's step is about half the stable step;
             # the run takes 0.9 of it). Not fewer: a run's fixed costs (its first evaluation,
