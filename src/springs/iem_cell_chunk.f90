@@ -49,7 +49,16 @@ contains
     integer, intent(inout) :: n_out(3)
     ! (edge_loop/iem_edge_near.inc's variables)
     real(wp) :: par, perp, l0, il0, d, h, e, a, b, li, st
-    integer :: c, n, nt, past
+    integer :: c, n, nt, past, mp
+    ! the edge loops run on to a whole number of vectors (mp edges): the nodes past m repeat
+    ! node m, so that the edges past m, which nothing reads, are unstretched (along a row) or
+    ! edge m again (vertical), and each count stays 0 where it was (only whether a count is 0
+    ! is read)
+    mp = padded(m)
+    do c = m + 1, mp
+      top%u(c, :) = top%u(m, :)
+      bot%u(c, :) = bot%u(m, :)
+    end do
     if (bottom) call row_edges(k, m, near, bot%u, bot%x, bot%y, bot%li, bot%st, n_out(1))
     ! a vertical edge: along it the y displacements, across it the x ones
     par = top%u(0, 2) - bot%u(0, 2)
@@ -64,7 +73,7 @@ contains
     n = past
     ! the top row's edges and the vertical ones in one loop (the top row's nodes read once)
     nt = 0
-    do c = 1, m
+    do c = 1, mp
       par = top%u(c, 1) - top%u(c - 1, 1)
       perp = top%u(c, 2) - top%u(c - 1, 2)
       l0 = k%lx
@@ -97,7 +106,8 @@ contains
   end subroutine chunk_edges
 
   !> The horizontal edges 1..m of a node row of displacements u(0:m, 2): unit vector (x, y),
-  !> inverse length ri and strain rs of each; n_out of them past near (edge_limit).
+  !> inverse length ri and strain rs of each; n_out of them past near (edge_limit). Runs on to
+  !> padded(m) edges: u past m is to repeat u(m) (chunk_edges), so that they count none.
   pure subroutine row_edges(k, m, near, u, x, y, ri, rs, n_out)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
@@ -110,7 +120,7 @@ contains
     n_out = 0
     l0 = k%lx
     il0 = k%il0(1)
-    do c = 1, m
+    do c = 1, padded(m)
       par = u(c, 1) - u(c - 1, 1)
       perp = u(c, 2) - u(c - 1, 2)
       include 'edge_loop/iem_edge_near.inc'
@@ -122,6 +132,13 @@ contains
     end do
     if (n_out > 0) call row_far(k, m, u, x, y, ri, rs)
   end subroutine row_edges
+
+  !> n rounded up to a whole number of the widest vectors (8 values), at most a chunk: the
+  !> edge loops' length (their remainders ran one edge at a time).
+  pure integer function padded(n)
+    integer, intent(in) :: n
+    padded = min(chunk, 8*((n + 7)/8))
+  end function padded
 
   !> row_edges' values of a row's edges past edge_near's range, measured again (edge_far).
   pure subroutine row_far(k, m, u, x, y, ri, rs)
