@@ -5,7 +5,9 @@
 !> first bottom and top nodes, from which its cells' corners follow; only the other chunks
 !> list their cells' corners. So the table costs a few integers a chunk, not 16 bytes a cell.
 module iem_cell_table
+  use iem_kinds, only: i8
   use iem_cell_laws, only: chunk
+  use iem_sort, only: sort_i8
   implicit none
   private
   public :: cell_table_t, cell_table, cell_chunks
@@ -25,6 +27,11 @@ module iem_cell_table
     integer, allocatable :: corners(:, :)
     !> block(k): the first chunk that holds a cell of 64 k + 1 .. 64 k + 64 (chunk_at).
     integer, allocatable :: block(:)
+    !> below(:, j): the chunks before chunk j whose top node rows hold nodes and edges of its
+    !> bottom row (the rows of all three numbered consecutively): p, the first one that does
+    !> (0: none), and q, the one that goes on from p's end (0: none, or p's holds the rest).
+    !> The force kernel takes those edges from them (link_rows).
+    integer, allocatable :: below(:, :)
   contains
     procedure :: n_chunks => cell_table_n_chunks
     procedure :: chunk_at => cell_table_chunk_at
@@ -65,6 +72,7 @@ contains
       t%corners(:, t%chunks(6, j):t%chunks(6, j) + m - 1) = cell_nodes(:, c0:c0 + m - 1)
     end do
     call make_blocks(t)
+    call link_rows(t)
   end function cell_table
 
   !> The chunks of a cell list: plan(:, j) = (first cell, number of cells, 1 when the chunk's
@@ -224,6 +232,7 @@ contains
         this%corners(:, this%chunks(6, j):this%chunks(6, j) + m - 1)
     end do
     call make_blocks(t)
+    call link_rows(t)
   end function cell_table_subset
 
   !> Release the table.
@@ -232,6 +241,7 @@ contains
     if (allocated(this%chunks)) deallocate(this%chunks)
     if (allocated(this%corners)) deallocate(this%corners)
     if (allocated(this%block)) deallocate(this%block)
+    if (allocated(this%below)) deallocate(this%below)
     this%n_cells = 0
   end subroutine cell_table_free
 
@@ -252,4 +262,76 @@ contains
       t%block(k) = j
     end do
   end subroutine make_blocks
+
+  !> below (cell_table_t's): for each chunk whose node rows are consecutive, the one or two
+  !> such chunks before it whose top rows hold edges of its bottom row: the first one that
+  !> does, and the one beside it when that holds more of them.
+  pure subroutine link_rows(t)
+    type(cell_table_t), intent(inout) :: t
+    integer(i8), allocatable :: key(:)
+    integer :: nj, n, j, lo, hi, mid, p, q, b, m
+    nj = t%n_chunks()
+    allocate(t%below(2, nj))
+    t%below = 0
+    ! the consecutive chunks by their top rows' first nodes (t0 * 2^31 + chunk)
+    n = count(t%chunks(3, :) == 1)
+    allocate(key(n))
+    n = 0
+    do j = 1, nj
+      if (t%chunks(3, j) /= 1) cycle
+      n = n + 1
+      key(n) = int(t%chunks(5, j), i8)*2_i8**31 + j
+    end do
+    call sort_i8(key)
+    do j = 1, nj
+      if (t%chunks(3, j) /= 1) cycle
+      b = t%chunks(4, j)
+      m = t%chunks(2, j)
+      ! the last chunk whose top row starts at or before node b
+      lo = 0
+      hi = n
+      do while (lo < hi)
+        mid = (lo + hi + 1)/2
+        if (key(mid)/2_i8**31 <= b) then
+          lo = mid
+        else
+          hi = mid - 1
+        end if
+      end do
+      ! the first top row that holds an edge of nodes b .. b + m (their row's: a top row that
+      ! holds one of them is of the same grid row): it, or the next one
+      if (lo > 0) then
+        if (top_end(lo) <= b) lo = lo + 1
+      else
+        lo = 1
+      end if
+      if (lo > n) cycle
+      if (top_first(lo) >= b + m) cycle
+      p = chunk_of_key(lo)
+      if (p >= j) cycle
+      t%below(1, j) = p
+      ! the top row that goes on from p's end, when the bottom row goes on past it
+      if (top_end(lo) >= b + m .or. lo == n) cycle
+      if (top_first(lo + 1) /= top_end(lo)) cycle
+      q = chunk_of_key(lo + 1)
+      if (q < j) t%below(2, j) = q
+    end do
+  contains
+
+    !> The first and last nodes of the top row of the chunk of key(i), and the chunk.
+    pure integer function top_first(i)
+      integer, intent(in) :: i
+      top_first = int(key(i)/2_i8**31)
+    end function top_first
+
+    pure integer function top_end(i)
+      integer, intent(in) :: i
+      top_end = top_first(i) + t%chunks(2, chunk_of_key(i))
+    end function top_end
+
+    pure integer function chunk_of_key(i)
+      integer, intent(in) :: i
+      chunk_of_key = int(mod(key(i), 2_i8**31))
+    end function chunk_of_key
+  end subroutine link_rows
 end module iem_cell_table

@@ -40,6 +40,9 @@ module iem_cell_kernel
     !> the next slot to take, and the slot freed by the last chunk (0: none).
     integer :: node(kernel_slots) = -1, m(kernel_slots) = 0, out(kernel_slots) = 0
     integer :: next = 1, spare = 0
+    !> The slot each chunk of the table put its top row in (0: none; a slot since taken by
+    !> another row is found out by its node).
+    integer, allocatable :: at(:)
   end type kernel_slots_t
 
 contains
@@ -170,6 +173,9 @@ contains
     type(edge_row_t), pointer :: rp(:)
     type(edge_col_t) :: v
     integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, spare, hit, j, ib, it
+    ! the slot each chunk's top row went to, and those of the chunks below this one
+    integer, allocatable :: chunk_slot(:)
+    integer :: sp, sq
     ! each row's edges past chunk_edges' limit (slots, then the two other rows), and the
     ! chunk's: bottom row, top row, vertical edges
     integer :: slot_out(kernel_slots + 2), n_out(3)
@@ -182,7 +188,7 @@ contains
     integer :: c0, m, i, nc, row, n_dmg, ic, b0, t0, ic_first, ic_last, test
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
     logical :: keep_terms
-    logical :: lean, intact, paper, shear_onset
+    logical :: lean, intact, paper, shear_onset, patched
     real(wp) :: onset(3), lc1(5), near
     integer(i8) :: n_past
 
@@ -249,6 +255,14 @@ contains
         next_slot = slots%next
         spare = slots%spare
       end if
+      if (allocated(slots%at)) call move_alloc(slots%at, chunk_slot)
+    end if
+    if (allocated(chunk_slot)) then
+      if (size(chunk_slot) < n_chunks()) deallocate(chunk_slot)
+    end if
+    if (.not. allocated(chunk_slot)) then
+      allocate(chunk_slot(n_chunks()))
+      chunk_slot = 0
     end if
     ic_first = 1
     ic_last = n_chunks()
@@ -263,13 +277,16 @@ contains
       ib = kernel_slots + 1
       it = kernel_slots + 2
       hit = 0
+      patched = .false.
       if (consec) then
-        do j = 1, kernel_slots
-          if (slot_node(j) == b0 .and. slot_m(j) == m) then
-            hit = j
-            exit
-          end if
-        end do
+        ! the slots that still hold the top rows of the chunks below (cells%below): the same
+        ! row (its slot is hit), or rows whose edges the bottom row's are (patched)
+        sp = held(cells%below(1, ic))
+        sq = held(cells%below(2, ic))
+        if (sp > 0) then
+          if (slot_node(sp) == b0 .and. slot_m(sp) == m) hit = sp
+        end if
+        if (hit == 0 .and. sp > 0) call patch_row(b0, m, sp, sq, rp(ib), patched)
         if (spare > 0) then
           ! the slot the chunk before read its bottom row from: the few slots in use stay in
           ! the core's nearest cache
@@ -282,13 +299,14 @@ contains
         end if
         slot_node(it) = t0
         slot_m(it) = m
+        chunk_slot(ic) = it
         if (hit > 0) then
           ! the bottom row is read by this chunk only: its slot is free after it
           ib = hit
           slot_node(hit) = -1
           spare = hit
         end if
-        if (hit == 0) call gather_row(y, 1, m, b0, rp(ib)%u)
+        if (hit == 0 .and. .not. patched) call gather_row(y, 1, m, b0, rp(ib)%u)
         call gather_row(y, 1, m, t0, rp(it)%u)
         if (damped) call gather_block(y, row, m, b0, t0, bw, tw)
         if (filtered) call gather_block(y, 3, m, b0, t0, bp, tp)
@@ -304,9 +322,11 @@ contains
         if (filtered) call gather_rows(y, 3, m, bn, tn, bp, tp)
       end if
       associate(bot => rp(ib), top => rp(it))
-      ! the bottom row's count as measured (a slot's: as the top row of the chunk below)
+      ! the bottom row's count as measured (a slot's: as the top row of the chunk below; a
+      ! patched row's: 0, its slots' counts being 0)
       n_out(1) = slot_out(ib)
-      call chunk_edges(k, m, bot, top, hit == 0, near, v, n_out)
+      if (patched) n_out(1) = 0
+      call chunk_edges(k, m, bot, top, hit == 0 .and. .not. patched, near, v, n_out)
       slot_out(it) = n_out(2)
       if (present(nl)) then
         if (by_material) then
@@ -432,8 +452,63 @@ contains
       slots%out = slot_out(1:kernel_slots)
       slots%next = next_slot
       slots%spare = spare
+      call move_alloc(chunk_slot, slots%at)
     end if
   contains
+
+    !> The slot that holds chunk p's top row (0: none, p = 0, or taken since by another row).
+    pure integer function held(p) result(s)
+      integer, intent(in) :: p
+      s = 0
+      if (p == 0) return
+      s = chunk_slot(p)
+      if (s < 1 .or. s > kernel_slots) then
+        s = 0
+      else if (slot_node(s) /= cells%chunks(5, p) .or. slot_m(s) /= cells%chunks(2, p)) then
+        s = 0
+      end if
+    end function held
+
+    !> A bottom row (first node b, m edges) made up from the top rows of the slots sp and
+    !> (when not 0) sq (cells%below): its nodes and edges copied when the two hold them all
+    !> between them and have no edge past near, else patched is .false. and nothing is
+    !> copied. The values are those chunk_edges would measure for the row: each edge depends
+    !> on its two nodes only.
+    pure subroutine patch_row(b, m, sp, sq, row, patched)
+      integer, intent(in) :: b, m, sp, sq
+      type(edge_row_t), intent(inout) :: row
+      logical, intent(out) :: patched
+      integer :: mid
+      ! node c and edge c of the row are node and edge c + b - (its first node) of a slot
+      ! (whose edge c ends at its node c); sp holds edges 1 .. mid, sq mid + 1 .. m
+      mid = min(m, slot_node(sp) + slot_m(sp) - b)
+      patched = slot_node(sp) <= b .and. slot_out(sp) == 0
+      if (sq > 0) then
+        patched = patched .and. slot_out(sq) == 0 .and. slot_node(sq) + slot_m(sq) >= b + m
+      else
+        patched = patched .and. mid == m
+      end if
+      if (.not. patched) return
+      row%u(0, :) = rp(sp)%u(b - slot_node(sp), :)
+      call copy_edges(1, mid, b - slot_node(sp), rp(sp), row)
+      if (sq > 0) call copy_edges(mid + 1, m, b - slot_node(sq), rp(sq), row)
+    end subroutine patch_row
+
+    !> Nodes and edges c = first .. last of row to from nodes and edges c + off of row from.
+    pure subroutine copy_edges(first, last, off, from, to)
+      integer, intent(in) :: first, last, off
+      type(edge_row_t), intent(in) :: from
+      type(edge_row_t), intent(inout) :: to
+      integer :: c
+      do c = first, last
+        to%u(c, 1) = from%u(c + off, 1)
+        to%u(c, 2) = from%u(c + off, 2)
+        to%x(c) = from%x(c + off)
+        to%y(c) = from%y(c + off)
+        to%li(c) = from%li(c + off)
+        to%st(c) = from%st(c + off)
+      end do
+    end subroutine copy_edges
 
     !> The number of chunks.
     pure integer function n_chunks()
