@@ -318,17 +318,19 @@ contains
     end do
   contains
 
-    !> The first and last nodes of the top row of the chunk of key(i), and the chunk.
+    !> The first node of the top row of the chunk of key(i).
     pure integer function top_first(i)
       integer, intent(in) :: i
       top_first = int(key(i)/2_i8**31)
     end function top_first
 
+    !> The last node of the top row of the chunk of key(i).
     pure integer function top_end(i)
       integer, intent(in) :: i
       top_end = top_first(i) + t%chunks(2, chunk_of_key(i))
     end function top_end
 
+    !> The chunk of key(i).
     pure integer function chunk_of_key(i)
       integer, intent(in) :: i
       chunk_of_key = int(mod(key(i), 2_i8**31))
