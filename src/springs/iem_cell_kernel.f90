@@ -172,7 +172,7 @@ contains
     type(edge_row_t), allocatable, target :: own_rows(:)
     type(edge_row_t), pointer :: rp(:)
     type(edge_col_t) :: v
-    integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, spare, hit, j, ib, it
+    integer :: slot_node(kernel_slots), slot_m(kernel_slots), next_slot, spare, hit, ib, it
     ! the slot each chunk's top row went to, and those of the chunks below this one
     integer, allocatable :: chunk_slot(:)
     integer :: sp, sq
