@@ -6,7 +6,7 @@ module iem_sort
   use iem_kinds, only: i8, wp
   implicit none
   private
-  public :: sort_i8, stable_sort_by, real_key, sum_by_label
+  public :: sort_i8, stable_sort_by, real_key, sum_by_label, order_by_node
 
 contains
 
@@ -127,4 +127,28 @@ contains
       root = child
     end do
   end subroutine sift_down
+
+  !> The entries of node (values 1..n_nodes) in ascending order of their nodes, entries of
+  !> one node in their order.
+  pure subroutine order_by_node(node, n_nodes, order)
+    integer, intent(in) :: node(:), n_nodes
+    integer, allocatable, intent(out) :: order(:)
+    integer, allocatable :: first(:)
+    integer :: j, l
+    ! a counting sort: first(l) is where node l's entries start
+    allocate(first(n_nodes + 1), order(size(node)))
+    first = 0
+    do j = 1, size(node)
+      first(node(j)) = first(node(j)) + 1
+    end do
+    l = 1
+    do j = 1, n_nodes + 1
+      l = l + first(j)
+      first(j) = l - first(j)
+    end do
+    do j = 1, size(node)
+      order(first(node(j))) = j
+      first(node(j)) = first(node(j)) + 1
+    end do
+  end subroutine order_by_node
 end module iem_sort

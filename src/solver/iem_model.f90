@@ -16,7 +16,7 @@ module iem_model
   use iem_cell_bands, only: cell_bands_t
   use iem_halo, only: halo_t
   use iem_node_pass, only: rk4_stage_t, accelerations, rk4_first_pass, rk4_mid_pass, &
-                           rk4_last_pass
+                           rk4_last_pass, mass_damping_powers
   use iem_nonlinear_springs, only: nonlinear_springs_t, reference_strains
   use iem_time_function, only: tf_value, tf_rate
   use iem_strings, only: itoa
@@ -24,6 +24,8 @@ module iem_model
   use iem_stable_dt, only: capped_beta
   use iem_alloc_guard, only: alloc_guard_t
   use iem_exact_sum, only: exact_sum_t
+  use iem_sort, only: order_by_node
+  use iem_stage_wave, only: stage_wave_t, wave_stages
   use iem_fracture, only: fracture_t
   use iem_fracture_law, only: fracture_law_t
   use iem_input_fracture, only: material_fracture_law
@@ -120,6 +122,10 @@ module iem_model
     !> External work and damping dissipation of this rank since the start: exact sums of the
     !> weighted terms of every evaluation the integrator counts (add_work).
     type(exact_sum_t) :: w_ext_acc, w_damp_acc
+    !> RK4's stages as one wavefront over the bands where it applies (stages_fit;
+    !> rate_stages); waves = .false. evaluates them one after the other.
+    type(stage_wave_t) :: wave
+    logical :: waves = .true.
   contains
     procedure :: init => model_init
     procedure :: rate => model_rate
@@ -128,6 +134,9 @@ module iem_model
     procedure :: energy_sums => model_energy_sums
     procedure :: reaction_sums => model_reaction_sums
     procedure :: rate_columns => model_rate_columns
+    procedure :: rate_stages => model_rate_stages
+    procedure :: stages_fit => model_stages_fit
+    procedure :: set_bands => model_set_bands
   end type model_t
 
   interface
@@ -181,6 +190,43 @@ module iem_model
       !> With kick: the next step's dt, its first kick and drift fused into the pass.
       real(wp), intent(in), optional :: drift
     end subroutine model_rate
+
+    !> RK4's stages first..4 (first: 1 or 2) of a step with 4 state values a node, as
+    !> model_rate with stage evaluates each in turn (stage 1 with commit), but as one
+    !> wavefront over the bands (where stages_fit): stage 1 at y0, the others at the stage
+    !> states in ys (with first = 2, stage 2's, its prescribed dofs set), at the times ts, the
+    !> passes' weights wdt and offsets h into ynew and ys from y0, each next stage state's
+    !> prescribed velocities set at its time as its nodes are made; each stage's powers p_ext
+    !> and p_damp, their terms added to the work and dissipation times wdt (add_work), stage
+    !> 4's sum of the new values in total, and acc's imposed accelerations as the calls
+    !> leave them. No energies are summed (energies_due is .false.).
+    module subroutine model_rate_stages(this, lat, first, ys, y0, ynew, acc, ts, wdt, h, &
+                                        p_ext, p_damp, total)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+      integer, intent(in) :: first
+      real(wp), intent(inout), contiguous :: ys(:, :), ynew(:, :), acc(:, :)
+      real(wp), intent(in), contiguous :: y0(:, :)
+      real(wp), intent(in) :: ts(wave_stages), wdt(wave_stages), h(wave_stages)
+      real(wp), intent(out) :: p_ext(wave_stages), p_damp(wave_stages), total
+    end subroutine model_rate_stages
+
+    !> The bands of the lattice's chunks (with halo nodes, of the split's interior chunks),
+    !> each completing at least band_nodes nodes (default: iem_cell_bands'
+    !> band_nodes_default), and the wavefront's schedule over them (without halo nodes).
+    module subroutine model_set_bands(this, lat, band_nodes)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+      integer, intent(in), optional :: band_nodes
+    end subroutine model_set_bands
+
+    !> Whether RK4's stages can go as one wavefront (rate_stages) on the lattice lat with
+    !> n_state values a node.
+    module logical function model_stages_fit(this, lat, n_state) result(fit)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+      integer, intent(in) :: n_state
+    end function model_stages_fit
   end interface
 
 contains
@@ -395,12 +441,8 @@ contains
     end do
     call index_loaded_nodes(this, lat%n_owned)
     call this%split%init(lat%cells, lat%n_owned, lat%n_local)
-    if (this%split%active) then
-      call this%bands%init(this%split%cells_in, lat%n_owned, this%split%d_node)
-    else
-      call this%bands%init(lat%cells, lat%n_owned)
-    end if
     call order_by_node(this%bc_node, lat%n_owned, this%bc_by_node)
+    call this%set_bands(lat)
     this%rows = kernel_rows()
     allocate(this%f_bc(size(this%bc_node)))
     ! the damping powers only with that damping
@@ -427,30 +469,6 @@ contains
     call this%w_ext_acc%reset()
     call this%w_damp_acc%reset()
   end subroutine model_init
-
-  !> The entries of node (values 1..n_nodes) in ascending order of their nodes, entries of
-  !> one node in their order.
-  pure subroutine order_by_node(node, n_nodes, order)
-    integer, intent(in) :: node(:), n_nodes
-    integer, allocatable, intent(out) :: order(:)
-    integer, allocatable :: first(:)
-    integer :: j, l
-    ! a counting sort: first(l) is where node l's entries start
-    allocate(first(n_nodes + 1), order(size(node)))
-    first = 0
-    do j = 1, size(node)
-      first(node(j)) = first(node(j)) + 1
-    end do
-    l = 1
-    do j = 1, n_nodes + 1
-      l = l + first(j)
-      first(j) = l - first(j)
-    end do
-    do j = 1, size(node)
-      order(first(node(j))) = j
-      first(node(j)) = first(node(j)) + 1
-    end do
-  end subroutine order_by_node
 
   !> The slots of the loaded nodes (ascending node order) for the compact external forces.
   subroutine index_loaded_nodes(this, n_owned)

@@ -4,7 +4,7 @@
 submodule (iem_model) iem_model_rate
   use mpi_f08, only: MPI_Wait, MPI_Test, MPI_STATUS_IGNORE, MPI_F_sync_reg
   use iem_timers, only: timer_switch, t_force, t_halo, t_update
-  use iem_node_pass, only: accelerations_in_place
+  use iem_node_pass, only: accelerations_in_place, mass_damping_powers
   use iem_cell_table, only: cell_table_t
   implicit none
 
@@ -486,23 +486,6 @@ contains
       end if
     end subroutine chunks
   end procedure model_rate
-
-  !> The mass damping's power alpha m |v|^2 of each of the nodes 1..n of the state y in pw,
-  !> and their sum, in node order, added to p. (Out of model_rate's internal procedure, whose
-  !> host variables gfortran kept in memory: a store and a load a node.)
-  pure subroutine mass_damping_powers(n, alpha, mass, y, pw, p)
-    integer, intent(in) :: n
-    real(wp), intent(in) :: alpha, mass(:), y(:, :)
-    real(wp), intent(inout) :: pw(:), p
-    real(wp) :: sum_p
-    integer :: l
-    sum_p = p
-    do l = 1, n
-      pw(l) = alpha*mass(l)*(y(3, l)**2 + y(4, l)**2)
-      sum_p = sum_p + pw(l)
-    end do
-    p = sum_p
-  end subroutine mass_damping_powers
 
   !> The terms pw(1:n) added to p in their order.
   pure subroutine sum_in_order(n, pw, p)

@@ -13,7 +13,7 @@ module iem_node_pass
   implicit none
   private
   public :: rk4_stage_t, accelerations, guarded_kick, rk4_first_pass, rk4_mid_pass, rk4_last_pass
-  public :: kick_drift, accelerations_in_place, node_pass_simd, use_simd
+  public :: kick_drift, accelerations_in_place, node_pass_simd, use_simd, mass_damping_powers
 
   !> Whether the passes built in iem_node_pass_simd.c are used when built (tests clear it to
   !> compare them with the loops here).
@@ -377,4 +377,21 @@ contains
     end do
     total = sum(part)
   end subroutine rk4_last_pass
+
+  !> The mass damping's power alpha m |v|^2 of each of the nodes 1..n of the state y in pw,
+  !> and their sum, in node order, added to p. (Out of model_rate's internal
+  !> procedure, whose host variables gfortran kept in memory: a store and a load a node.)
+  pure subroutine mass_damping_powers(n, alpha, mass, y, pw, p)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: alpha, mass(:), y(:, :)
+    real(wp), intent(inout) :: pw(:), p
+    real(wp) :: sum_p
+    integer :: l
+    sum_p = p
+    do l = 1, n
+      pw(l) = alpha*mass(l)*(y(3, l)**2 + y(4, l)**2)
+      sum_p = sum_p + pw(l)
+    end do
+    p = sum_p
+  end subroutine mass_damping_powers
 end module iem_node_pass

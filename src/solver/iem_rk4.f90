@@ -30,6 +30,10 @@ module iem_rk4
   type, extends(integrator_t) :: rk4_t
     !> Whether the stage updates are fused into the evaluations' passes (4 values a node).
     logical :: fused = .false.
+    !> Whether stage 1 of the next step goes with its stages 2-4 as one wavefront (the model's
+    !> rate_stages): set by a step that nothing follows but the next one (next_plain), where
+    !> the wavefront applies; prepare then only settles the last step.
+    logical :: deferred = .false.
     !> The agreement on the last step: pending, this rank's verdict, every rank's, whether
     !> this rank swapped its new state in, and the request.
     logical :: pending = .false., mine = .true., all = .true., swapped = .false.
@@ -89,9 +93,9 @@ contains
     type(rk4_stage_t) :: stage
     logical :: ok
     this%fused = size(st%y, 1) == 4
-    if (.not. this%fused) then
+    if (this%deferred .or. .not. this%fused) then
       call this%settle(st, ok)
-      if (.not. ok) return
+      if (.not. ok .or. this%deferred) return
       call state_rate(model, lat, halo, st, t)
       return
     end if
@@ -124,7 +128,10 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     logical, intent(out) :: accepted
-    call rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%mine, this%fused)
+    call rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%mine, this%fused, &
+                         this%deferred)
+    this%deferred = .false.
+    if (this%fused .and. this%next_plain) this%deferred = model%stages_fit(lat, size(st%y, 1))
     this%swapped = this%mine
     call MPI_Iallreduce(this%mine, this%all, 1, MPI_LOGICAL, MPI_LAND, this%comm, this%req)
     this%pending = .true.
@@ -189,7 +196,8 @@ contains
   !> accepted new state is swapped in (no copy). With finite present, the new state is
   !> accepted only if all its owned values are finite (finite = .false.: y keeps the state at
   !> t and st%ynew holds the rejected one); the test is summed in the last pass.
-  subroutine rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, finite, fused)
+  subroutine rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, finite, fused, &
+                             stage1)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
@@ -199,9 +207,11 @@ contains
     logical, intent(out), optional :: finite
     !> Stage 1's update was fused into prepare's evaluation, and the later ones are too.
     logical, intent(in), optional :: fused
-    real(wp), allocatable :: swap(:, :)
-    real(wp) :: p_ext, p_damp, total
-    integer :: n, stage
+    !> Stage 1 was left to this call (with fused, where the model's stages_fit): it goes with
+    !> stages 2-4 as one wavefront (st%p_ext1 and st%p_damp1 are set here).
+    logical, intent(in), optional :: stage1
+    real(wp) :: p_ext, p_damp, total, pw_ext(4), pw_damp(4)
+    integer :: n, stage, first
     logical :: fuse
     type(rk4_stage_t) :: stg
 
@@ -210,11 +220,37 @@ contains
     if (present(fused)) fuse = fused
     call timer_start(t_update)
     ! k1 is in st%acc (accelerations) and st%y(3:4) (velocities), or already applied
+    first = 2
+    if (fuse .and. present(stage1)) then
+      if (stage1) first = 1
+    end if
     if (.not. fuse) call stage_update(st%y, st%y, st%acc, weight(1)*dt, frac(2)*dt, .true., &
                                       st%ynew, st%ys, total)
-    w_ext = w_ext + weight(1)*dt*st%p_ext1
-    call model%add_work(lat, weight(1)*dt)
-    w_damp = w_damp + weight(1)*dt*st%p_damp1
+    if (first == 2) then
+      w_ext = w_ext + weight(1)*dt*st%p_ext1
+      call model%add_work(lat, weight(1)*dt)
+      w_damp = w_damp + weight(1)*dt*st%p_damp1
+    end if
+    if (fuse .and. (first == 1 .or. model%stages_fit(lat, size(st%y, 1)))) then
+      ! stages first..4 as one wavefront over the bands: the same operations, bit for bit
+      if (first == 2) call model%prescribe(st%ys, t + frac(2)*dt)
+      call timer_stop(t_update)
+      call timer_start(t_force)
+      call model%rate_stages(lat, first, st%ys, st%y, st%ynew, st%acc, t + frac*dt, &
+                             weight*dt, [frac(2:4)*dt, 0.0_wp], pw_ext, pw_damp, total)
+      call timer_stop(t_force)
+      call timer_start(t_update)
+      if (first == 1) then
+        st%p_ext1 = pw_ext(1)
+        st%p_damp1 = pw_damp(1)
+      end if
+      do stage = first, 4
+        w_ext = w_ext + weight(stage)*dt*pw_ext(stage)
+        w_damp = w_damp + weight(stage)*dt*pw_damp(stage)
+      end do
+      call finish()
+      return
+    end if
     do stage = 2, 4
       call model%prescribe(st%ys, t + frac(stage)*dt)
       call timer_stop(t_update)
@@ -243,20 +279,27 @@ contains
         call last_update(st%ys, st%acc, weight(stage)*dt, st%ynew, total)
       end if
     end do
-    if (present(finite)) then
-      ! any NaN or Inf (or an overflow) makes the sum non-finite
-      finite = ieee_is_finite(total)
-      if (.not. finite) then
-        call timer_stop(t_update)
-        return
-      end if
-    end if
-    call move_alloc(st%y, swap)
-    call move_alloc(st%ynew, st%y)
-    call move_alloc(swap, st%ynew)
-    call model%prescribe(st%y, t + dt)
-    call timer_stop(t_update)
+    call finish()
   contains
+
+    !> The new state swapped in (with finite, only when all its values are finite; total is
+    !> their sum), its prescribed velocities set.
+    subroutine finish()
+      real(wp), allocatable :: swap(:, :)
+      if (present(finite)) then
+        ! any NaN or Inf (or an overflow) makes the sum non-finite
+        finite = ieee_is_finite(total)
+        if (.not. finite) then
+          call timer_stop(t_update)
+          return
+        end if
+      end if
+      call move_alloc(st%y, swap)
+      call move_alloc(st%ynew, st%y)
+      call move_alloc(swap, st%ynew)
+      call model%prescribe(st%y, t + dt)
+      call timer_stop(t_update)
+    end subroutine finish
 
     !> One pass over the owned nodes for the rate (velocities ys(3:4), rates acc) of a stage:
     !> ynew <- (first: y, else ynew) + wdt (ys(3:4), acc), and the next stage state
