@@ -227,6 +227,31 @@ module iem_model
       type(local_lattice_t), intent(in) :: lat
       integer, intent(in) :: n_state
     end function model_stages_fit
+
+    !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of
+    !> the last rate evaluation (counted cells), the external work, the damping dissipation
+    !> and the fracture dissipation (counted cells), in sums(1:5), for an exact global sum
+    !> (exact_sum_allreduce).
+    module subroutine model_energy_sums(this, lat, y, sums)
+      class(model_t), intent(in) :: this
+      type(local_lattice_t), intent(in) :: lat
+      real(wp), intent(in) :: y(:, :)
+      type(exact_sum_t), intent(out) :: sums(5)
+    end subroutine model_energy_sums
+
+    !> Add the reactions of this rank's prescribed dofs at the last committed evaluation (the
+    !> accepted state y at time t) to sums(2*(s - 1) + comp), s = series(b) of the dof's &bc
+    !> b, exactly: the force R = m (a + alpha v) + f_int - f_ext the support exerts on the
+    !> body (inertia = .false., static runs: f_int - f_ext); a released condition exerts
+    !> none.
+    module subroutine model_reaction_sums(this, y, t, series, inertia, sums)
+      class(model_t), intent(in) :: this
+      real(wp), intent(in) :: y(:, :)
+      real(wp), intent(in) :: t
+      integer, intent(in) :: series(:)
+      logical, intent(in) :: inertia
+      type(exact_sum_t), intent(inout) :: sums(:)
+    end subroutine model_reaction_sums
   end interface
 
 contains
@@ -543,58 +568,6 @@ contains
     end if
     if (this%alpha > 0.0_wp) call this%w_damp_acc%add_scaled(this%pw_node(1:lat%n_owned), wdt)
   end subroutine model_add_work
-
-  !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of
-  !> the last rate evaluation (counted cells), the external work, the damping dissipation
-  !> and the fracture dissipation (counted cells), in sums(1:5), for an exact global sum
-  !> (exact_sum_allreduce).
-  subroutine model_energy_sums(this, lat, y, sums)
-    class(model_t), intent(in) :: this
-    type(local_lattice_t), intent(in) :: lat
-    real(wp), intent(in) :: y(:, :)
-    type(exact_sum_t), intent(out) :: sums(5)
-    integer :: l, c, j, m, c0, fc(max_chunk)
-    do l = 1, lat%n_owned
-      call sums(1)%add(0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2))
-    end do
-    sums(2) = this%en_sum
-    sums(3) = this%w_ext_acc
-    sums(4) = this%w_damp_acc
-    if (this%fracture) then
-      do j = 1, lat%cells%n_chunks()
-        call lat%first_corners(j, fc, m)
-        c0 = lat%cells%chunks(1, j) - 1
-        do c = 1, m
-          if (fc(c) <= lat%n_owned) call sums(5)%add(this%fr%diss(c0 + c))
-        end do
-      end do
-    end if
-  end subroutine model_energy_sums
-
-  !> Add the reactions of this rank's prescribed dofs at the last committed evaluation (the
-  !> accepted state y at time t) to sums(2*(s - 1) + comp), s = series(b) of the dof's &bc b,
-  !> exactly: the force R = m (a + alpha v) + f_int - f_ext the support exerts on the body
-  !> (inertia = .false., static runs: f_int - f_ext); a released condition exerts none.
-  subroutine model_reaction_sums(this, y, t, series, inertia, sums)
-    class(model_t), intent(in) :: this
-    real(wp), intent(in) :: y(:, :)
-    real(wp), intent(in) :: t
-    integer, intent(in) :: series(:)
-    logical, intent(in) :: inertia
-    type(exact_sum_t), intent(inout) :: sums(:)
-    integer :: n, l, comp, b
-    real(wp) :: r
-    do n = 1, size(this%bc_node)
-      l = this%bc_node(n)
-      comp = this%bc_comp(n)
-      b = this%bc_id(n)
-      if (t >= this%bc_release(b)) cycle
-      r = this%r_bc(n)
-      if (inertia) r = this%mass(l)*(this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t) + &
-                       this%alpha*y(2 + comp, l)) + r
-      call sums(2*(series(b) - 1) + comp)%add(r)
-    end do
-  end subroutine model_reaction_sums
 
   !> Columns the state's rates array acc needs for this model: none for RK4 with 4 values a
   !> node (rk4_work; its fused passes never read it), every local node's when the forces are

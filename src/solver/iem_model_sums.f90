@@ -1,0 +1,44 @@
+!> The model's exact sums for the history (model_energy_sums, model_reaction_sums,
+!> documented at their interfaces in iem_model.f90): the energies and the reactions of a
+!> rank, for an exact global sum.
+submodule (iem_model) iem_model_sums
+  implicit none
+
+contains
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_energy_sums
+    integer :: l, c, j, m, c0, fc(max_chunk)
+    do l = 1, lat%n_owned
+      call sums(1)%add(0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2))
+    end do
+    sums(2) = this%en_sum
+    sums(3) = this%w_ext_acc
+    sums(4) = this%w_damp_acc
+    if (this%fracture) then
+      do j = 1, lat%cells%n_chunks()
+        call lat%first_corners(j, fc, m)
+        c0 = lat%cells%chunks(1, j) - 1
+        do c = 1, m
+          if (fc(c) <= lat%n_owned) call sums(5)%add(this%fr%diss(c0 + c))
+        end do
+      end do
+    end if
+  end procedure model_energy_sums
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_reaction_sums
+    integer :: n, l, comp, b
+    real(wp) :: r
+    do n = 1, size(this%bc_node)
+      l = this%bc_node(n)
+      comp = this%bc_comp(n)
+      b = this%bc_id(n)
+      if (t >= this%bc_release(b)) cycle
+      r = this%r_bc(n)
+      if (inertia) r = this%mass(l)*(this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t) + &
+                       this%alpha*y(2 + comp, l)) + r
+      call sums(2*(series(b) - 1) + comp)%add(r)
+    end do
+  end procedure model_reaction_sums
+end submodule iem_model_sums
