@@ -7,7 +7,7 @@ module iem_model
   use iem_grid, only: grid_t
   use iem_body, only: body_t
   use iem_local_lattice, only: local_lattice_t
-  use iem_cell_table, only: max_chunk
+  use iem_cell_table, only: max_chunk, cell_table_t
   use iem_node_sets, only: select_nodes
   use iem_spring_constants, only: cell_constants_t, cell_constants
   use iem_cell_kernel, only: cell_forces, kernel_rows, kernel_slots_t
@@ -135,6 +135,7 @@ module iem_model
     procedure :: reaction_sums => model_reaction_sums
     procedure :: rate_columns => model_rate_columns
     procedure :: rate_stages => model_rate_stages
+    procedure :: cells => model_cells
     procedure :: stages_fit => model_stages_fit
     procedure :: set_bands => model_set_bands
   end type model_t
@@ -191,6 +192,27 @@ module iem_model
       real(wp), intent(in), optional :: drift
     end subroutine model_rate
 
+    !> The cell forces of the chunks of table (range: only those; at: the split's routed
+    !> chunks) at the state y, added to fs, with the kernel's node rows and slots: accept
+    !> commits the springs' history and the damage at time, terms takes the counted cells'
+    !> energies; pd the kernel's damping power.
+    module subroutine model_cells(this, lat, table, y, fs, accept, time, rows, slots, pd, at, &
+                                  terms, range)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+      type(cell_table_t), intent(in) :: table
+      real(wp), intent(in), contiguous :: y(:, :)
+      real(wp), intent(inout), contiguous :: fs(:, :)
+      logical, intent(in) :: accept
+      real(wp), intent(in) :: time
+      type(edge_row_t), intent(inout) :: rows(:)
+      type(kernel_slots_t), intent(inout) :: slots
+      real(wp), intent(out) :: pd
+      integer, intent(in), optional, contiguous :: at(:)
+      type(exact_sum_t), intent(inout), optional :: terms
+      integer, intent(in), optional :: range(2)
+    end subroutine model_cells
+
     !> RK4's stages first..4 (first: 1 or 2) of a step with 4 state values a node, as
     !> model_rate with stage evaluates each in turn (stage 1 with commit), but as one
     !> wavefront over the bands (where stages_fit): stage 1 at y0, the others at the stage
@@ -227,6 +249,15 @@ module iem_model
       type(local_lattice_t), intent(in) :: lat
       integer, intent(in) :: n_state
     end function model_stages_fit
+
+    !> Add the powers of the last rate evaluation, each times wdt (its weight in the time
+    !> integral of the step), to the external work and the damping dissipation, exactly;
+    !> the cells counted are this rank's (lat: the lattice of the evaluation).
+    module subroutine model_add_work(this, lat, wdt)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+      real(wp), intent(in) :: wdt
+    end subroutine model_add_work
 
     !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of
     !> the last rate evaluation (counted cells), the external work, the damping dissipation
@@ -540,34 +571,6 @@ contains
     end do
   end subroutine model_prescribe
 
-
-  !> Add the powers of the last rate evaluation, each times wdt (its weight in the time
-  !> integral of the step), to the external work and the damping dissipation, exactly; the
-  !> cells counted are this rank's (lat: the lattice of the evaluation).
-  subroutine model_add_work(this, lat, wdt)
-    class(model_t), intent(inout) :: this
-    type(local_lattice_t), intent(in) :: lat
-    real(wp), intent(in) :: wdt
-    integer :: c, j, m, c0, k, fc(max_chunk)
-    real(wp) :: counted(max_chunk)
-    call this%w_ext_acc%add_scaled(this%pe_slot, wdt)
-    call this%w_ext_acc%add_scaled(this%pr_bc, wdt)
-    if (this%beta > 0.0_wp) then
-      ! the counted cells (first corner owned), a chunk at a time
-      do j = 1, lat%cells%n_chunks()
-        call lat%first_corners(j, fc, m)
-        c0 = lat%cells%chunks(1, j) - 1
-        k = 0
-        do c = 1, m
-          if (fc(c) > lat%n_owned) cycle
-          k = k + 1
-          counted(k) = this%pw_cell(c0 + c)
-        end do
-        call this%w_damp_acc%add_scaled(counted(1:k), wdt)
-      end do
-    end if
-    if (this%alpha > 0.0_wp) call this%w_damp_acc%add_scaled(this%pw_node(1:lat%n_owned), wdt)
-  end subroutine model_add_work
 
   !> Columns the state's rates array acc needs for this model: none for RK4 with 4 values a
   !> node (rk4_work; its fused passes never read it), every local node's when the forces are

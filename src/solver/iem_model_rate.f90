@@ -419,72 +419,14 @@ contains
       integer, intent(in), optional :: chunk_range(2)
       real(wp) :: pd
       if (energies) then
-        call chunks(fs, table, pd, at, this%en_sum, chunk_range)
+        call this%cells(lat, table, y, fs, accept, t, this%rows, this%slots, pd, at, &
+                        this%en_sum, chunk_range)
       else
-        call chunks(fs, table, pd, at, range=chunk_range)
+        call this%cells(lat, table, y, fs, accept, t, this%rows, this%slots, pd, at, &
+                        range=chunk_range)
       end if
       if (.not. present(chunk_range)) p_damp = pd
     end subroutine cells
-
-    !> The kernel's calls of cells, with terms (the energies' exact sum) or without; pd the
-    !> kernel's damping power.
-    subroutine chunks(fs, table, pd, at, terms, range)
-      real(wp), intent(inout), contiguous :: fs(:, :)
-      type(cell_table_t), intent(in) :: table
-      real(wp), intent(out) :: pd
-      integer, intent(in), optional, contiguous :: at(:)
-      type(exact_sum_t), intent(inout), optional :: terms
-      integer, intent(in), optional :: range(2)
-      ! no array of the cells' energies: an empty one says so (the kernel then forms no plain
-      ! sum of them either)
-      real(wp) :: none(0)
-      if (this%nonlinear) then
-        if (this%mixed) then
-          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                           this%energy, pd, this%n_state - 1, this%nl, accept, this%ks, &
-                           lat%cell_mat, none, this%pw_cell, energy_terms=terms, &
-                           add=.true., rows=this%rows, route_at=at, route=this%split%route, &
-                           side=this%split%side, chunks=range, slots=this%slots)
-        else
-          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                           this%energy, pd, this%n_state - 1, this%nl, accept, &
-                           cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
-                           add=.true., rows=this%rows, route_at=at, &
-                           route=this%split%route, side=this%split%side, &
-                           chunks=range, slots=this%slots)
-        end if
-      else if (this%fracture) then
-        if (this%mixed) then
-          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                           this%energy, pd, this%n_state - 1, commit=accept, ks=this%ks, &
-                           cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
-                           cell_power=this%pw_cell, fr=this%fr, time=t, &
-                           add=.true., rows=this%rows, route_at=at, route=this%split%route, &
-                           side=this%split%side, chunks=range, slots=this%slots)
-        else
-          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                           this%energy, pd, this%n_state - 1, commit=accept, &
-                           cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
-                           fr=this%fr, time=t, add=.true., rows=this%rows, &
-                           route_at=at, route=this%split%route, side=this%split%side, &
-                           chunks=range, slots=this%slots)
-        end if
-      else if (this%mixed) then
-        call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                         this%energy, pd, this%n_state - 1, ks=this%ks, &
-                         cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
-                         cell_power=this%pw_cell, add=.true., rows=this%rows, &
-                         route_at=at, route=this%split%route, side=this%split%side, &
-                         chunks=range, slots=this%slots)
-      else
-        call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                         this%energy, pd, this%n_state - 1, cell_energy=none, &
-                         energy_terms=terms, &
-                         cell_power=this%pw_cell, add=.true., rows=this%rows, &
-                         route_at=at, route=this%split%route, side=this%split%side, &
-                         chunks=range, slots=this%slots)
-      end if
-    end subroutine chunks
   end procedure model_rate
 
   !> The terms pw(1:n) added to p in their order.

@@ -39,7 +39,6 @@ contains
     real(wp) :: pd(wave_stages), sums(wave_stages)
     integer :: jb(wave_stages), js(wave_stages), done(wave_stages)
     integer :: i, b, nb, ld, n, s, q
-    real(wp) :: none(0)
 
     associate(wv => this%wave)
       nb = this%bands%n_bands()
@@ -130,51 +129,13 @@ contains
     end subroutine band
 
     !> Stage i's cell forces of the chunks range(1)..range(2) at the state y (its kernel rows
-    !> and slots), as model_rate's chunks evaluates them; stage 1 commits (the springs'
-    !> history, the damage) at its time.
+    !> and slots); stage 1 commits (the springs' history, the damage) at its time.
     subroutine cells(i, range, y)
       integer, intent(in) :: i, range(2)
       real(wp), intent(in), contiguous :: y(:, :)
-      real(wp) :: en, pw
-      logical :: accept
-      accept = i == 1
-      associate(wv => this%wave)
-        if (this%nonlinear) then
-          if (this%mixed) then
-            call cell_forces(this%k, lat%cells, lat%n_owned, y, 0.0_wp, this%f, en, pw, &
-                             this%n_state - 1, this%nl, accept, this%ks, lat%cell_mat, none, &
-                             this%pw_cell, add=.true., rows=wv%rows(i)%r, chunks=range, &
-                             slots=wv%slots(i))
-          else
-            call cell_forces(this%k, lat%cells, lat%n_owned, y, 0.0_wp, this%f, en, pw, &
-                             this%n_state - 1, this%nl, accept, cell_energy=none, &
-                             cell_power=this%pw_cell, add=.true., rows=wv%rows(i)%r, &
-                             chunks=range, slots=wv%slots(i))
-          end if
-        else if (this%fracture) then
-          if (this%mixed) then
-            call cell_forces(this%k, lat%cells, lat%n_owned, y, 0.0_wp, this%f, en, pw, &
-                             this%n_state - 1, commit=accept, ks=this%ks, &
-                             cell_mat=lat%cell_mat, cell_energy=none, cell_power=this%pw_cell, &
-                             fr=this%fr, time=ts(i), add=.true., rows=wv%rows(i)%r, &
-                             chunks=range, slots=wv%slots(i))
-          else
-            call cell_forces(this%k, lat%cells, lat%n_owned, y, 0.0_wp, this%f, en, pw, &
-                             this%n_state - 1, commit=accept, cell_energy=none, &
-                             cell_power=this%pw_cell, fr=this%fr, time=ts(i), add=.true., &
-                             rows=wv%rows(i)%r, chunks=range, slots=wv%slots(i))
-          end if
-        else if (this%mixed) then
-          call cell_forces(this%k, lat%cells, lat%n_owned, y, 0.0_wp, this%f, en, pw, &
-                           this%n_state - 1, ks=this%ks, cell_mat=lat%cell_mat, &
-                           cell_energy=none, cell_power=this%pw_cell, add=.true., &
-                           rows=wv%rows(i)%r, chunks=range, slots=wv%slots(i))
-        else
-          call cell_forces(this%k, lat%cells, lat%n_owned, y, 0.0_wp, this%f, en, pw, &
-                           this%n_state - 1, cell_energy=none, cell_power=this%pw_cell, &
-                           add=.true., rows=wv%rows(i)%r, chunks=range, slots=wv%slots(i))
-        end if
-      end associate
+      real(wp) :: pd_cells
+      call this%cells(lat, lat%cells, y, this%f, i == 1, ts(i), this%wave%rows(i)%r, &
+                      this%wave%slots(i), pd_cells, range=range)
     end subroutine cells
 
     !> Stage i's pass over the nodes lo..hi at its state y (y0 or ys), whose forces are

@@ -1,10 +1,33 @@
-!> The model's exact sums for the history (model_energy_sums, model_reaction_sums,
-!> documented at their interfaces in iem_model.f90): the energies and the reactions of a
-!> rank, for an exact global sum.
+!> The model's exact sums (model_add_work, model_energy_sums, model_reaction_sums,
+!> documented at their interfaces in iem_model.f90): the work and dissipation of a step's
+!> evaluations, and a rank's energies and reactions for the history's exact global sums.
 submodule (iem_model) iem_model_sums
   implicit none
 
 contains
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_add_work
+    integer :: c, j, m, c0, k, fc(max_chunk)
+    real(wp) :: counted(max_chunk)
+    call this%w_ext_acc%add_scaled(this%pe_slot, wdt)
+    call this%w_ext_acc%add_scaled(this%pr_bc, wdt)
+    if (this%beta > 0.0_wp) then
+      ! the counted cells (first corner owned), a chunk at a time
+      do j = 1, lat%cells%n_chunks()
+        call lat%first_corners(j, fc, m)
+        c0 = lat%cells%chunks(1, j) - 1
+        k = 0
+        do c = 1, m
+          if (fc(c) > lat%n_owned) cycle
+          k = k + 1
+          counted(k) = this%pw_cell(c0 + c)
+        end do
+        call this%w_damp_acc%add_scaled(counted(1:k), wdt)
+      end do
+    end if
+    if (this%alpha > 0.0_wp) call this%w_damp_acc%add_scaled(this%pw_node(1:lat%n_owned), wdt)
+  end procedure model_add_work
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_energy_sums
