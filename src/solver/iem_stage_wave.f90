@@ -1,10 +1,10 @@
 !> Work space of RK4's stages taken as one wavefront over the bands of a rank's chunks
 !> (model_t's rate_stages, docs/architecture.md "RK4's stages as one wavefront"): each
 !> stage sweeps a band once the stage before it has passed every node the band's cells
-!> reach, so that a band's state, forces and new state are read by the three stages while
-!> they are still in the processor's caches. Each stage keeps its own kernel rows and slots
-!> (its sweep goes on from band to band as one sweep) and its own loads, load powers and
-!> reaction powers until the three are summed in stage order.
+!> reach, so that a band's state, forces and new state are read by every stage while they
+!> are still in the processor's caches. Each stage keeps its own kernel rows and slots (its
+!> sweep goes on from band to band as one sweep) and its own loads, load powers and reaction
+!> powers until they are summed in stage order.
 module iem_stage_wave
   use iem_kinds, only: wp
   use iem_cell_table, only: cell_table_t, max_chunk
