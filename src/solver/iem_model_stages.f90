@@ -108,7 +108,7 @@ contains
     !> nodes the band completes.
     subroutine band(i, b)
       integer, intent(in) :: i, b
-      integer :: c1, r
+      integer :: c1, r, j0
       logical :: timed
       c1 = 1
       if (b > 1) c1 = this%bands%last_chunk(b - 1) + 1
@@ -119,11 +119,13 @@ contains
       end if
       call timer_switch(t_force, t_update, timed)
       do r = this%bands%run_first(b), this%bands%run_first(b + 1) - 1
+        ! (the terms read the stage state, which the pass then overwrites: two calls)
         if (i == 1) then
-          call run_nodes(i, this%bands%runs(1, r), this%bands%runs(2, r), y0)
+          call run_terms(i, this%bands%runs(1, r), this%bands%runs(2, r), y0, j0)
         else
-          call run_nodes(i, this%bands%runs(1, r), this%bands%runs(2, r), ys)
+          call run_terms(i, this%bands%runs(1, r), this%bands%runs(2, r), ys, j0)
         end if
+        call run_pass(i, this%bands%runs(1, r), this%bands%runs(2, r), j0)
       end do
       if (timed) call timer_switch(t_update, t_force)
     end subroutine band
@@ -138,14 +140,14 @@ contains
                       this%wave%slots(i), pd_cells, range=range)
     end subroutine cells
 
-    !> Stage i's pass over the nodes lo..hi at its state y (y0 or ys), whose forces are
-    !> complete: model_rate's run_nodes (reactions, loads, mass damping powers, the stage's
-    !> update), then the prescribed velocities of the next stage state it made.
-    subroutine run_nodes(i, lo, hi, y)
+    !> Stage i's terms of the nodes lo..hi at its state y (y0 or ys), whose forces are
+    !> complete, as model_rate's run_nodes forms them: reactions (from j0, the run's first
+    !> prescribed dof in bc_by_node), loads, mass damping powers.
+    subroutine run_terms(i, lo, hi, y, j0)
       integer, intent(in) :: i, lo, hi
       real(wp), intent(in), contiguous :: y(:, :)
-      integer :: j0, j, l
-      real(wp) :: part
+      integer, intent(out) :: j0
+      integer :: l
       associate(wv => this%wave, f => this%f)
         do while (jb(i) <= size(this%bc_by_node))
           if (this%bc_node(this%bc_by_node(jb(i))) >= lo) exit
@@ -173,6 +175,16 @@ contains
                                    this%pw_node(lo:hi), pd(i))
           call this%w_damp_acc%add_scaled(this%pw_node(lo:hi), wdt(i))
         end if
+      end associate
+    end subroutine run_terms
+
+    !> Stage i's update of the nodes lo..hi (model_rate's run_nodes' pass), then the
+    !> prescribed velocities of the next stage state it made (its dofs from j0 on).
+    subroutine run_pass(i, lo, hi, j0)
+      integer, intent(in) :: i, lo, hi, j0
+      integer :: j
+      real(wp) :: part
+      associate(f => this%f)
         if (i == 1) then
           call rk4_first_pass(hi - lo + 1, this%alpha, this%mass(lo:hi), wdt(i), h(i), &
                               y0(:, lo:hi), f(:, lo:hi), ynew(:, lo:hi), ys(:, lo:hi))
@@ -191,7 +203,7 @@ contains
           sums(i) = sums(i) + part
         end if
       end associate
-    end subroutine run_nodes
+    end subroutine run_pass
 
     !> model_rate's reaction_terms of prescribed dof q at stage i, its state y (stage 1
     !> commits: its reaction is kept).
