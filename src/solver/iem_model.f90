@@ -136,6 +136,7 @@ module iem_model
     procedure :: rate_columns => model_rate_columns
     procedure :: rate_stages => model_rate_stages
     procedure :: cells => model_cells
+    procedure :: reaction_terms => model_reaction_terms
     procedure :: stages_fit => model_stages_fit
     procedure :: set_bands => model_set_bands
   end type model_t
@@ -212,6 +213,19 @@ module iem_model
       type(exact_sum_t), intent(inout), optional :: terms
       integer, intent(in), optional :: range(2)
     end subroutine model_cells
+
+    !> Prescribed dof q at an evaluated state y at time t, from its node's cell forces in fs
+    !> (before the loads fext are taken off): its cell force f_bc, with keep its reaction r_bc,
+    !> and its reaction's power pr (on: whether it enters p_ext: not released, moving).
+    module subroutine model_reaction_terms(this, q, fs, y, t, fext, keep, pr, on)
+      class(model_t), intent(inout) :: this
+      integer, intent(in) :: q
+      real(wp), intent(in), contiguous :: fs(:, :), y(:, :), fext(:, :)
+      real(wp), intent(in) :: t
+      logical, intent(in) :: keep
+      real(wp), intent(out) :: pr
+      logical, intent(out) :: on
+    end subroutine model_reaction_terms
 
     !> RK4's stages first..4 (first: 1 or 2) of a step with 4 state values a node, as
     !> model_rate with stage evaluates each in turn (stage 1 with commit), but as one

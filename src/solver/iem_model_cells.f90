@@ -1,6 +1,7 @@
-!> The cell forces of a table's chunks as every rate evaluation takes them (model_cells,
-!> documented at its interface in iem_model.f90): the kernel's call for the model's
-!> materials and laws (elastic, nonlinear springs, fracture; one material or several).
+!> What every rate evaluation takes alike (model_cells, model_reaction_terms, documented at
+!> their interfaces in iem_model.f90): the kernel's call for the model's materials and laws
+!> (elastic, nonlinear springs, fracture; one material or several), and a prescribed dof's
+!> cell force, reaction and reaction power.
 submodule (iem_model) iem_model_cells
   implicit none
 
@@ -58,4 +59,28 @@ contains
                        chunks=range, slots=slots)
     end if
   end procedure model_cells
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_reaction_terms
+    real(wp) :: rq, a_imp
+    integer :: lq, cq, bq
+    lq = this%bc_node(q)
+    cq = this%bc_comp(q)
+    bq = this%bc_id(q)
+    this%f_bc(q) = fs(cq, lq)
+    pr = 0.0_wp
+    on = .false.
+    if (t >= this%bc_release(bq)) return
+    a_imp = this%bc_velocity(cq, bq)*tf_rate(this%bc_tf(bq), t)
+    if (keep) then
+      this%r_bc(q) = this%f_bc(q)
+      if (this%bc_slot(q) > 0) this%r_bc(q) = this%r_bc(q) - fext(cq, this%bc_slot(q))
+    end if
+    if (y(2 + cq, lq) /= 0.0_wp) then
+      rq = this%mass(lq)*(a_imp + this%alpha*y(2 + cq, lq)) + this%f_bc(q)
+      if (this%bc_slot(q) > 0) rq = rq - fext(cq, this%bc_slot(q))
+      pr = rq*y(2 + cq, lq)
+      on = .true.
+    end if
+  end procedure model_reaction_terms
 end submodule iem_model_cells

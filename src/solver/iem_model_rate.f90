@@ -12,7 +12,7 @@ contains
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_rate
-    real(wp) :: r, a_imp
+    real(wp) :: r
     integer :: l, b, ld, comp, n, s
     logical :: changed, accept, keep, timed, energies
 
@@ -190,7 +190,9 @@ contains
       end do
       do while (jb <= size(this%bc_by_node))
         if (this%bc_node(this%bc_by_node(jb)) > hi) exit
-        call reaction_terms(fs, this%bc_by_node(jb))
+        call this%reaction_terms(this%bc_by_node(jb), fs, y, t, this%fext, keep, &
+                                 this%pr_bc(this%bc_by_node(jb)), &
+                                 this%pr_on(this%bc_by_node(jb)))
         jb = jb + 1
       end do
       do while (js <= size(this%ext_node))
@@ -254,7 +256,7 @@ contains
       ! reactions (which need the imposed accelerations), of mass damping; the halo nodes'
       ! forces are not used
       do n = 1, size(this%bc_node)
-        call reaction_terms(fs, n)
+        call this%reaction_terms(n, fs, y, t, this%fext, keep, this%pr_bc(n), this%pr_on(n))
       end do
       fs(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
       do s = 1, size(this%ext_node)
@@ -363,34 +365,6 @@ contains
         this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
       end do
     end subroutine rebuild_loads
-
-    !> Prescribed dof q at the evaluated state, from its node's cell forces in fs (before the
-    !> loads are taken off): its cell force f_bc, with keep its reaction r_bc, and its
-    !> reaction's power pr_bc (pr_on: whether it enters p_ext: not released, moving).
-    subroutine reaction_terms(fs, q)
-      real(wp), intent(in), contiguous :: fs(:, :)
-      integer, intent(in) :: q
-      real(wp) :: rq
-      integer :: lq, cq, bq
-      lq = this%bc_node(q)
-      cq = this%bc_comp(q)
-      bq = this%bc_id(q)
-      this%f_bc(q) = fs(cq, lq)
-      this%pr_bc(q) = 0.0_wp
-      this%pr_on(q) = .false.
-      if (t >= this%bc_release(bq)) return
-      a_imp = this%bc_velocity(cq, bq)*tf_rate(this%bc_tf(bq), t)
-      if (keep) then
-        this%r_bc(q) = this%f_bc(q)
-        if (this%bc_slot(q) > 0) this%r_bc(q) = this%r_bc(q) - this%fext(cq, this%bc_slot(q))
-      end if
-      if (y(2 + cq, lq) /= 0.0_wp) then
-        rq = this%mass(lq)*(a_imp + this%alpha*y(2 + cq, lq)) + this%f_bc(q)
-        if (this%bc_slot(q) > 0) rq = rq - this%fext(cq, this%bc_slot(q))
-        this%pr_bc(q) = rq*y(2 + cq, lq)
-        this%pr_on(q) = .true.
-      end if
-    end subroutine reaction_terms
 
     !> The halo exchange (1), its start (2) or its finish (3), timed as such.
     subroutine halo_part(part)

@@ -156,7 +156,11 @@ contains
         j0 = jb(i)
         do while (jb(i) <= size(this%bc_by_node))
           if (this%bc_node(this%bc_by_node(jb(i))) > hi) exit
-          call reaction(i, this%bc_by_node(jb(i)), y)
+          associate(q => this%bc_by_node(jb(i)))
+            ! stage 1 commits: its reactions are kept
+            call this%reaction_terms(q, f, y, ts(i), wv%fx(:, :, i), i == 1, wv%pr(q, i), &
+                                     wv%on(q, i))
+          end associate
           jb(i) = jb(i) + 1
         end do
         do while (js(i) <= size(this%ext_node))
@@ -204,34 +208,6 @@ contains
         end if
       end associate
     end subroutine run_pass
-
-    !> model_rate's reaction_terms of prescribed dof q at stage i, its state y (stage 1
-    !> commits: its reaction is kept).
-    subroutine reaction(i, q, y)
-      integer, intent(in) :: i, q
-      real(wp), intent(in), contiguous :: y(:, :)
-      real(wp) :: rq, a_imp
-      integer :: lq, cq, bq
-      lq = this%bc_node(q)
-      cq = this%bc_comp(q)
-      bq = this%bc_id(q)
-      this%f_bc(q) = this%f(cq, lq)
-      this%wave%pr(q, i) = 0.0_wp
-      this%wave%on(q, i) = .false.
-      if (ts(i) >= this%bc_release(bq)) return
-      a_imp = this%bc_velocity(cq, bq)*tf_rate(this%bc_tf(bq), ts(i))
-      if (i == 1) then
-        this%r_bc(q) = this%f_bc(q)
-        if (this%bc_slot(q) > 0) this%r_bc(q) = this%r_bc(q) - &
-                                                this%wave%fx(cq, this%bc_slot(q), i)
-      end if
-      if (y(2 + cq, lq) /= 0.0_wp) then
-        rq = this%mass(lq)*(a_imp + this%alpha*y(2 + cq, lq)) + this%f_bc(q)
-        if (this%bc_slot(q) > 0) rq = rq - this%wave%fx(cq, this%bc_slot(q), i)
-        this%wave%pr(q, i) = rq*y(2 + cq, lq)
-        this%wave%on(q, i) = .true.
-      end if
-    end subroutine reaction
 
     !> model_prescribe for prescribed dof q of ys at time tq.
     subroutine prescribe_dof(q, tq)
