@@ -23,6 +23,7 @@
 #include <stdint.h>
 #include <stdlib.h> /* defines __GLIBC__ where the C library is glibc */
 #include <string.h>
+#include <sys/mman.h>
 #ifdef __GLIBC__
 #include <malloc.h>
 #endif
@@ -35,6 +36,10 @@ void __wrap_free(void *p);
 void *__wrap_realloc(void *p, size_t n);
 
 enum { LARGE = 262144, PAGE = 4096, LINE = 64, SLOTS = 1024, MAX_LIVE = 3 * SLOTS / 4 };
+/* the size of a huge page (x86-64's and most systems' transparent huge pages), and the size
+ * from which a block asks for them */
+#define HUGE_PAGE ((uintptr_t)2 << 20)
+#define HUGE_FROM ((size_t)4 << 20)
 
 /* A staggered block: the pointer handed out (0: slot empty), the C library's block, the size. */
 typedef struct {
@@ -86,7 +91,7 @@ static void erase(size_t s) {
 }
 
 /* malloc: a block of n bytes; from LARGE bytes on, on a cache line at the next offset in turn
- * in its page. */
+ * in its page, and from HUGE_FROM on, in huge pages where the system has them. */
 void *__wrap_malloc(size_t n) {
   if (n < LARGE) return __real_malloc(n);
   lock();
@@ -97,6 +102,15 @@ void *__wrap_malloc(size_t n) {
   unlock();
   char *real = __real_malloc(n + PAGE + LINE);
   if (real == NULL) return NULL;
+#ifdef MADV_HUGEPAGE
+  if (n >= HUGE_FROM) {
+    /* the whole huge pages within the block may be backed by huge pages (where transparent
+     * huge pages are left to madvise; a hint, its failure harmless) */
+    uintptr_t lo = ((uintptr_t)real + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
+    uintptr_t hi = ((uintptr_t)real + n) & ~(HUGE_PAGE - 1);
+    if (hi > lo) (void)madvise((void *)lo, hi - lo, MADV_HUGEPAGE);
+  }
+#endif
   lock();
   uintptr_t want = (LINE + 1024u * (turn++ % 4u)) % PAGE;
   uintptr_t out = (uintptr_t)real + ((want - (uintptr_t)real % PAGE) % PAGE);
