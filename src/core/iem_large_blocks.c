@@ -93,7 +93,8 @@ static void erase(size_t s) {
 /* malloc: a block of n bytes; from LARGE bytes on, on a cache line at the next offset in turn
  * in its page, and from HUGE_FROM on, in huge pages where the system has them. */
 void *__wrap_malloc(size_t n) {
-  if (n < LARGE) return __real_malloc(n);
+  /* (a size the extra bytes would wrap around is the C library's to refuse) */
+  if (n < LARGE || n > SIZE_MAX - PAGE - LINE) return __real_malloc(n);
   lock();
   if (live >= MAX_LIVE) {
     unlock();
