@@ -7,6 +7,7 @@ program iem_main
   use iem_simulation, only: simulation_t
   use iem_h5_output, only: h5_library_close
   use iem_logger, only: log_init, log_error, log_info
+  use iem_build_info, only: iem_version
   implicit none
   type(config_t) :: cfg
   type(simulation_t) :: sim
@@ -18,19 +19,24 @@ program iem_main
   call MPI_Comm_rank(MPI_COMM_WORLD, rank)
   call log_init(rank)
   nargs = command_argument_count()
-  if (nargs /= 1) then
-    call get_command_argument(1, arg)
-    if (nargs == 1 .or. trim(arg) == '-h' .or. trim(arg) == '--help') then
-      call log_info('usage: mpirun -np N iem case.nml   (see docs/input.md)')
-      call finish(0)
-    end if
-    call log_error('usage: mpirun -np N iem case.nml (exactly one input file)')
-    call finish(2)
-  end if
   call get_command_argument(1, arg)
   if (trim(arg) == '-h' .or. trim(arg) == '--help') then
-    call log_info('usage: mpirun -np N iem case.nml   (see docs/input.md)')
+    call log_info('usage: mpirun -np N iem case.nml   (see docs/input.md); iem --version')
     call finish(0)
+  end if
+  if (trim(arg) == '-V' .or. trim(arg) == '--version') then
+    call log_info('iem '//iem_version)
+    call finish(0)
+  end if
+  if (arg(1:1) == '-') then
+    call log_error("unknown option '"//trim(arg)//"' (usage: mpirun -np N iem case.nml; "// &
+                   "iem --help, iem --version; a case file whose name starts with '-': ./"// &
+                   trim(arg)//")")
+    call finish(2)
+  end if
+  if (nargs /= 1) then
+    call log_error('usage: mpirun -np N iem case.nml (exactly one input file)')
+    call finish(2)
   end if
 
   call read_config(trim(arg), MPI_COMM_WORLD, cfg, stat, msg)

@@ -157,6 +157,10 @@ def coded_cases(root: Path) -> list[tuple[Path, str, str]]:
         b"&run t_end = 1e-4, output_file = 'out\x00.h5' /\n&geometry length = 1, height = 0.2, "
         b"nx = 4, ny = 1 /\n&material E = 2e11, nu = 0.3, density = 7800 /\n")
     cases.append((d, "case.nml", "a control character (byte 0)"))
+    d = root / "unknown_option"
+    d.mkdir()
+    (d / "case.nml").write_text("&run t_end = 1e-4 /\n")
+    cases.append((d, "--frobnicate", "unknown option '--frobnicate'"))
     return cases
 
 
