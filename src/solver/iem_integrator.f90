@@ -40,6 +40,9 @@ module iem_integrator
     !> With next_plain: the time of that step's end as the driver numbers it (the next step's
     !> t).
     real(wp) :: t_next = 0.0_wp
+    !> With next_plain: no history sample reads the evaluation of the step after the next
+    !> one (its rates may be evaluated with the next step's).
+    logical :: next_forces = .false.
   contains
     procedure :: init => integrator_init
     procedure(integrator_name_i), deferred :: name

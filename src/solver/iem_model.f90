@@ -139,6 +139,8 @@ module iem_model
     procedure :: reaction_terms => model_reaction_terms
     procedure :: stages_fit => model_stages_fit
     procedure :: set_bands => model_set_bands
+    procedure :: verlet_pair => model_verlet_pair
+    procedure :: pair_fits => model_pair_fits
   end type model_t
 
   interface
@@ -165,7 +167,8 @@ module iem_model
     !> there for the next step's forces (iem_node_pass's accelerations_in_place; prescribed
     !> dofs included: their values are the caller's to set).
     module subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit, record, stage, &
-                                 y0, ynew, ynext, kick, halo, vote, vote_all, first_bad, drift)
+                                 y0, ynew, ynext, kick, halo, vote, vote_all, first_bad, drift, &
+                                 cells_done)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       real(wp), intent(inout), contiguous :: y(:, :)
@@ -191,6 +194,8 @@ module iem_model
       integer, intent(out), optional :: first_bad
       !> With kick: the next step's dt, its first kick and drift fused into the pass.
       real(wp), intent(in), optional :: drift
+      !> The cells' forces at y are in acc already (the last verlet_pair's next step).
+      logical, intent(in), optional :: cells_done
     end subroutine model_rate
 
     !> The cell forces of the chunks of table (range: only those; at: the split's routed
@@ -255,6 +260,32 @@ module iem_model
       type(local_lattice_t), intent(in) :: lat
       integer, intent(in), optional :: band_nodes
     end subroutine model_set_bands
+
+    !> Velocity Verlet's step evaluated at t1 (model_rate with commit, kick h and drift dt)
+    !> and the next step's cell forces (at t_next + dt) summed into acc, as one wavefront over
+    !> the bands; u_bc: the prescribed dofs' displacements before the pass (mended at t_next
+    !> as iem_verlet's mend_prescribed does). Bit for bit model_rate's results, and the next
+    !> step's forces those of its evaluation (cells_done); first_bad as model_rate's (then no
+    !> dof is mended and acc is as model_rate leaves it). iem_model_pair.f90.
+    module subroutine model_verlet_pair(this, lat, y, t1, t_next, h, dt, acc, u_bc, ready, &
+                                        p_ext, p_damp, first_bad)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+      real(wp), intent(inout), contiguous :: y(:, :), acc(:, :)
+      real(wp), intent(in) :: t1, t_next, h, dt, u_bc(:)
+      !> The step's cell forces are in acc already (the last pair's next step).
+      logical, intent(in) :: ready
+      real(wp), intent(out) :: p_ext, p_damp
+      integer, intent(out) :: first_bad
+    end subroutine model_verlet_pair
+
+    !> Whether velocity Verlet's steps can pair (verlet_pair) on lat with n_state values a
+    !> node: no halo nodes, bands, elastic springs without fracture or stiffness damping.
+    module logical function model_pair_fits(this, lat, n_state) result(fit)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+      integer, intent(in) :: n_state
+    end function model_pair_fits
 
     !> Whether RK4's stages can go as one wavefront (rate_stages) on the lattice lat with
     !> n_state values a node.
@@ -584,7 +615,6 @@ contains
                                                 tf_value(this%bc_tf(b), t)
     end do
   end subroutine model_prescribe
-
 
   !> Columns the state's rates array acc needs for this model: none for RK4 with 4 values a
   !> node (rk4_work; its fused passes never read it), every local node's when the forces are

@@ -14,7 +14,7 @@ contains
   module procedure model_rate
     real(wp) :: r
     integer :: l, b, ld, comp, n, s
-    logical :: changed, accept, keep, timed, energies
+    logical :: changed, accept, keep, timed, energies, ready
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
@@ -233,8 +233,15 @@ contains
     !> referenced only as fs.
     subroutine evaluate(fs)
       real(wp), intent(inout), contiguous :: fs(:, :)
-      ! fs holds zeros here (the node passes below clear what they read)
-      if (.not. present(halo)) then
+      ! fs holds zeros here (the node passes below clear what they read), or with cells_done
+      ! the cells' forces (one rank, no stiffness damping: their damping power is 0)
+      p_damp = 0.0_wp
+      ready = .false.
+      if (present(cells_done)) ready = cells_done
+      if (ready) then
+        if (.not. this%sum_in_acc .or. lat%n_local /= lat%n_owned .or. this%beta > 0.0_wp) &
+          error stop 'model_rate: cells_done needs the forces in acc, one rank, no beta'
+      else if (.not. present(halo)) then
         call cells(fs, lat%cells)
       else if (.not. this%split%active) then
         call halo_part(1)

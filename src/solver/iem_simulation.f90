@@ -488,6 +488,9 @@ contains
       this%integ%t_next = real(k + 1, wp)*this%dt
       this%model%energies_due = sample_due(this, k + 1, t, this%integ%t_next)
       this%integ%next_plain = quiet_step(this, k + 1, t, this%integ%t_next)
+      this%integ%next_forces = .false.
+      if (k + 2 <= this%n_steps) this%integ%next_forces = &
+        .not. sample_due(this, k + 2, this%integ%t_next, real(k + 2, wp)*this%dt)
       call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
                            this%w_damp, accepted)
       if (.not. accepted) then

@@ -5,7 +5,9 @@
 !> from what the guarded kick left (no copy of the state is kept). When nothing reads the state
 !> between two steps (the driver's next_plain) the next step's first kick and drift run in the
 !> same pass over the nodes as this step's second kick (bit for bit the same values; one pass
-!> over the state a step instead of two).
+!> over the state a step instead of two); where the model can (one rank, bands, elastic), that
+!> pass goes band by band with the next step's cell forces a band behind (the model's
+!> verlet_pair), so that each step is one sweep over the state.
 module iem_verlet
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use mpi_f08, only: MPI_Request, MPI_Iallreduce, MPI_Wait, MPI_STATUS_IGNORE, MPI_LOGICAL, &
@@ -40,6 +42,9 @@ module iem_verlet
     !> Whether the state is part way into the next step: the last step's pass also ran the
     !> next step's first kick and drift (its rates then cleared where it did).
     logical :: ahead = .false.
+    !> Whether the last step also summed this step's cell forces into the rates (the model's
+    !> verlet_pair), so that this step's evaluation goes on from them.
+    logical :: paired = .false.
   contains
     procedure :: name => verlet_name
     procedure :: stable_dt => verlet_dt
@@ -96,6 +101,7 @@ contains
     integer :: l
     if (.not. first) return
     this%ahead = .false.
+    this%paired = .false.
     call state_rate(model, lat, halo, st, t)
     this%first_bad = 0
     do l = 1, lat%n_owned
@@ -119,12 +125,17 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     logical, intent(out) :: accepted
-    logical :: ahead
+    logical :: ahead, pair
     ahead = this%next_plain
     if (ahead) ahead = can_run_ahead(model, st, t, this%t_next, dt)
+    ! the next step's cell forces in this step's sweep: where the model can, when no sample
+    ! reads the next step's evaluation (next_forces)
+    pair = ahead .and. this%next_forces .and. .not. model%energies_due
+    if (pair) pair = model%pair_fits(lat, size(st%y, 1))
     call verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%first_bad, this%ahead, &
-                     ahead, this%t_next)
+                     ahead, this%t_next, this%paired, pair)
     this%ahead = ahead
+    this%paired = pair .and. this%first_bad == 0
     this%h = 0.5_wp*dt
     call vote(this)
     accepted = .true.
@@ -267,9 +278,12 @@ contains
   !> rates cleared). With ahead (4 values a node, forces summed into the rates; the next
   !> step starts at t_next), this step's pass runs the next step's first kick and drift where
   !> its kick was finite, with the next step's prescribed values, and clears the rates there:
-  !> the state is then the next call's with begun, bit for bit.
+  !> the state is then the next call's with begun, bit for bit. With ready, the rates hold the
+  !> cell forces at t + dt already (the last call's pair); with pair (and ahead), the pass runs
+  !> band by band and the next step's cell forces follow into the rates (the model's
+  !> verlet_pair: the next call's with ready, bit for bit).
   subroutine verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, first_bad, begun, ahead, &
-                         t_next)
+                         t_next, ready, pair)
     type(model_t), intent(inout) :: model
     type(local_lattice_t), intent(in) :: lat
     type(halo_t), intent(inout) :: halo
@@ -279,9 +293,10 @@ contains
     integer, intent(out), optional :: first_bad
     logical, intent(in), optional :: begun, ahead
     real(wp), intent(in), optional :: t_next
+    logical, intent(in), optional :: ready, pair
     real(wp) :: p_ext, p_damp, h, c, u_bc(size(model%bc_node))
     integer :: l, n, bad
-    logical :: fuse, start, next
+    logical :: fuse, start, next, done, two
 
     n = lat%n_owned
     h = 0.5_wp*dt
@@ -290,6 +305,10 @@ contains
     if (present(begun)) start = .not. begun
     next = .false.
     if (present(ahead)) next = ahead
+    done = .false.
+    if (present(ready)) done = ready
+    two = .false.
+    if (present(pair)) two = pair .and. next
     if (next .and. .not. (fuse .and. model%sum_in_acc .and. present(t_next))) &
       error stop 'verlet_step: ahead needs 4 values a node, the forces in the rates and t_next'
     call timer_start(t_update)
@@ -321,14 +340,19 @@ contains
     call timer_start(t_force)
     ! the end of the step is accepted: nonlinear springs commit their history to it; with 4
     ! values a node the kick v(t + dt) is fused into the evaluation's pass over the nodes
-    if (next) then
+    if (two) then
+      ! (the prescribed dofs mended as the bands' passes go)
+      call keep_prescribed(model, st%y, u_bc)
+      call model%verlet_pair(lat, st%y, t + dt, t_next, h, dt, st%acc, u_bc, done, &
+                             p_ext, p_damp, bad)
+    else if (next) then
       ! (the next step's first part: the prescribed dofs mended from their displacements here)
       call keep_prescribed(model, st%y, u_bc)
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., kick=h, &
-                      halo=halo, first_bad=bad, drift=dt)
+                      halo=halo, first_bad=bad, drift=dt, cells_done=done)
     else if (fuse) then
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., kick=h, &
-                      halo=halo, first_bad=bad)
+                      halo=halo, first_bad=bad, cells_done=done)
     else
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., halo=halo)
     end if
@@ -342,7 +366,8 @@ contains
     if (.not. fuse) call guarded_kick(n, h, st%acc, st%y, bad)
     if (present(first_bad)) first_bad = bad
     ! (a rejected step keeps what the guarded kick left, for rejected)
-    if (bad == 0) then
+    ! (with two, the bands' passes mended the prescribed dofs as they went)
+    if (bad == 0 .and. .not. two) then
       if (next) then
         call mend_prescribed(model, st%y, u_bc, t_next, dt)
       else
