@@ -201,9 +201,9 @@ module iem_model
     !> The cell forces of the chunks of table (range: only those; at: the split's routed
     !> chunks) at the state y, added to fs, with the kernel's node rows and slots: accept
     !> commits the springs' history and the damage at time, terms takes the counted cells'
-    !> energies; pd the kernel's damping power.
+    !> energies; pd the kernel's damping power; damaged: whether fracture has damaged a cell.
     module subroutine model_cells(this, lat, table, y, fs, accept, time, rows, slots, pd, at, &
-                                  terms, range)
+                                  terms, range, damaged)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       type(cell_table_t), intent(in) :: table
@@ -217,6 +217,7 @@ module iem_model
       integer, intent(in), optional, contiguous :: at(:)
       type(exact_sum_t), intent(inout), optional :: terms
       integer, intent(in), optional :: range(2)
+      logical, intent(out), optional :: damaged
     end subroutine model_cells
 
     !> Prescribed dof q at an evaluated state y at time t, from its node's cell forces in fs
@@ -265,10 +266,11 @@ module iem_model
     !> and the next step's cell forces (at t_next + dt) summed into acc, as one wavefront over
     !> the bands; u_bc: the prescribed dofs' displacements before the pass (mended at t_next
     !> as iem_verlet's mend_prescribed does). Bit for bit model_rate's results, and the next
-    !> step's forces those of its evaluation (cells_done); first_bad as model_rate's (then no
-    !> dof is mended and acc is as model_rate leaves it). iem_model_pair.f90.
+    !> step's forces those of its evaluation (cells_done) where paired (not where fracture
+    !> damages a cell there: its commit would change the cell); first_bad as model_rate's
+    !> (then no dof is mended and acc is as model_rate leaves it). iem_model_pair.f90.
     module subroutine model_verlet_pair(this, lat, y, t1, t_next, h, dt, acc, u_bc, ready, &
-                                        p_ext, p_damp, first_bad)
+                                        p_ext, p_damp, first_bad, paired)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       real(wp), intent(inout), contiguous :: y(:, :), acc(:, :)
@@ -277,10 +279,11 @@ module iem_model
       logical, intent(in) :: ready
       real(wp), intent(out) :: p_ext, p_damp
       integer, intent(out) :: first_bad
+      logical, intent(out) :: paired
     end subroutine model_verlet_pair
 
     !> Whether velocity Verlet's steps can pair (verlet_pair) on lat with n_state values a
-    !> node: no halo nodes, bands, elastic springs without fracture or stiffness damping.
+    !> node: no halo nodes, bands, elastic springs, no stiffness or capped damping.
     module logical function model_pair_fits(this, lat, n_state) result(fit)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat

@@ -12,6 +12,7 @@ contains
     ! no array of the cells' energies: an empty one says so (the kernel then forms no plain
     ! sum of them either)
     real(wp) :: none(0)
+    if (present(damaged)) damaged = .false.
     if (this%nonlinear) then
       if (this%mixed) then
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
@@ -34,14 +35,14 @@ contains
                          cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
                          cell_power=this%pw_cell, fr=this%fr, time=time, &
                          add=.true., rows=rows, route_at=at, route=this%split%route, &
-                         side=this%split%side, chunks=range, slots=slots)
+                         side=this%split%side, chunks=range, slots=slots, damaged=damaged)
       else
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
                          this%energy, pd, this%n_state - 1, commit=accept, &
                          cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
                          fr=this%fr, time=time, add=.true., rows=rows, &
                          route_at=at, route=this%split%route, side=this%split%side, &
-                         chunks=range, slots=slots)
+                         chunks=range, slots=slots, damaged=damaged)
       end if
     else if (this%mixed) then
       call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &

@@ -19,7 +19,7 @@ contains
   module procedure model_pair_fits
     fit = this%waves .and. n_state == 4 .and. this%bands%active .and. this%sum_in_acc .and. &
           this%beta == 0.0_wp .and. this%omega_cap == 0.0_wp .and. .not. this%nonlinear .and. &
-          .not. this%fracture .and. .not. this%split%active .and. lat%n_local == lat%n_owned
+          .not. this%split%active .and. lat%n_local == lat%n_owned
     if (fit) fit = this%wave%ready()
   end procedure model_pair_fits
 
@@ -72,6 +72,7 @@ contains
         end if
       end if
     end do
+    paired = .not. stopped
     ! the sums in model_rate's order: the loads' powers, then the reactions' that enter p_ext;
     ! the mass damping powers in node order (the cells' damping power is 0 here)
     p_ext = 0.0_wp
@@ -115,15 +116,27 @@ contains
     end subroutine step_band
 
     !> The next step's cells of band b at the moved state, summed into acc (cleared there by
-    !> the step's pass), with its own kernel rows and slots; committed at t_next + dt.
+    !> the step's pass), with its own kernel rows and slots; not committed (the same forces:
+    !> a commit changes only the springs' history, which elastic springs have none of, and
+    !> the damage of a cell fracture has damaged, which stops the pairing: stop_next).
     subroutine next_cells(b)
       integer, intent(in) :: b
       integer :: c1
+      logical :: hit
       c1 = 1
       if (b > 1) c1 = this%bands%last_chunk(b - 1) + 1
-      call this%cells(lat, lat%cells, y, acc, .true., t_next + dt, this%wave%rows(2)%r, &
-                      this%wave%slots(2), pd, range=[c1, this%bands%last_chunk(b)])
+      call this%cells(lat, lat%cells, y, acc, .false., t_next + dt, this%wave%rows(2)%r, &
+                      this%wave%slots(2), pd, range=[c1, this%bands%last_chunk(b)], damaged=hit)
+      if (hit) call stop_next(b)
     end subroutine next_cells
+
+    !> The next step stops with its band b evaluated: its forces taken off again (every node
+    !> they reach was moved on by a finite kick, its rates then cleared by the pass to +0).
+    subroutine stop_next(b)
+      integer, intent(in) :: b
+      stopped = .true.
+      acc(:, 1:this%bands%done(this%wave%need(b))) = 0.0_wp
+    end subroutine stop_next
 
     !> The terms of the nodes lo..hi, whose forces are complete in acc, as model_rate forms
     !> them before its pass: the reactions of their prescribed dofs (from j0, the run's first
@@ -182,13 +195,12 @@ contains
       end do
     end subroutine mend
 
-    !> A node whose kick is not finite: the next step stops, its forces taken off again
-    !> (every node they reach was moved by a finite kick, its rates then cleared), and the
-    !> prescribed dofs mended so far put back as the pass left them.
+    !> A node whose kick is not finite: the next step stops (stop_next), and the prescribed
+    !> dofs mended so far are put back as the pass left them.
     subroutine give_up()
       integer :: i, q
+      if (.not. stopped .and. done(2) > 0) call stop_next(done(2))
       stopped = .true.
-      if (done(2) > 0) acc(:, 1:this%bands%done(this%wave%need(done(2)))) = 0.0_wp
       do i = 1, n_mended
         q = mended(i)
         y(this%bc_comp(q), this%bc_node(q)) = kept(1, i)

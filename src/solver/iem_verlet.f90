@@ -135,7 +135,7 @@ contains
     call verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%first_bad, this%ahead, &
                      ahead, this%t_next, this%paired, pair)
     this%ahead = ahead
-    this%paired = pair .and. this%first_bad == 0
+    this%paired = pair
     this%h = 0.5_wp*dt
     call vote(this)
     accepted = .true.
@@ -281,7 +281,8 @@ contains
   !> the state is then the next call's with begun, bit for bit. With ready, the rates hold the
   !> cell forces at t + dt already (the last call's pair); with pair (and ahead), the pass runs
   !> band by band and the next step's cell forces follow into the rates (the model's
-  !> verlet_pair: the next call's with ready, bit for bit).
+  !> verlet_pair: the next call's with ready, bit for bit), and pair says on return whether
+  !> they are there.
   subroutine verlet_step(model, lat, halo, st, t, dt, w_ext, w_damp, first_bad, begun, ahead, &
                          t_next, ready, pair)
     type(model_t), intent(inout) :: model
@@ -293,7 +294,8 @@ contains
     integer, intent(out), optional :: first_bad
     logical, intent(in), optional :: begun, ahead
     real(wp), intent(in), optional :: t_next
-    logical, intent(in), optional :: ready, pair
+    logical, intent(in), optional :: ready
+    logical, intent(inout), optional :: pair
     real(wp) :: p_ext, p_damp, h, c, u_bc(size(model%bc_node))
     integer :: l, n, bad
     logical :: fuse, start, next, done, two
@@ -308,7 +310,10 @@ contains
     done = .false.
     if (present(ready)) done = ready
     two = .false.
-    if (present(pair)) two = pair .and. next
+    if (present(pair)) then
+      two = pair .and. next
+      pair = .false.
+    end if
     if (next .and. .not. (fuse .and. model%sum_in_acc .and. present(t_next))) &
       error stop 'verlet_step: ahead needs 4 values a node, the forces in the rates and t_next'
     call timer_start(t_update)
@@ -344,7 +349,7 @@ contains
       ! (the prescribed dofs mended as the bands' passes go)
       call keep_prescribed(model, st%y, u_bc)
       call model%verlet_pair(lat, st%y, t + dt, t_next, h, dt, st%acc, u_bc, done, &
-                             p_ext, p_damp, bad)
+                             p_ext, p_damp, bad, pair)
     else if (next) then
       ! (the next step's first part: the prescribed dofs mended from their displacements here)
       call keep_prescribed(model, st%y, u_bc)

@@ -122,7 +122,8 @@ contains
   !> commit their damage is committed at time (iem_fracture_kernel).
   pure subroutine cell_forces(k, cells, n_owned, y, beta, f, energy, damp_power, damp_row, &
                               nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, &
-                              add, rows, route_at, route, side, energy_terms, chunks, slots)
+                              add, rows, route_at, route, side, energy_terms, chunks, slots, &
+                              damaged)
     type(cell_constants_t), intent(in) :: k
     !> The cells, in chunks, with their corners.
     type(cell_table_t), intent(in) :: cells
@@ -161,6 +162,8 @@ contains
     !> takes them from the call before, which left its chunks' top rows in rows (the nodes of
     !> those rows not changed since).
     type(kernel_slots_t), intent(inout), optional :: slots
+    !> Whether fracture has damaged some cell (a commit would change its state; fr only).
+    logical, intent(out), optional :: damaged
     ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
     ! (w) and, with filtered damping, the velocities (p)
     integer :: bn(0:chunk), tn(0:chunk), cq(4, chunk)
@@ -193,6 +196,7 @@ contains
     integer(i8) :: n_past
 
     nc = cells%n_cells
+    if (present(damaged)) damaged = .false.
     keep_energy = .false.
     keep_power = .false.
     if (present(cell_energy)) keep_energy = size(cell_energy) >= nc
@@ -395,6 +399,7 @@ contains
                                  gen, gpw, dmg, n_dmg, c_first=c0, accept=accept, fr=fr, &
                                  time=time)
             end if
+            if (present(damaged)) damaged = damaged .or. n_dmg > 0
             do i = 1, m
               if (.not. dmg(i)) cycle
               fx(i, :) = gx(i, :)
