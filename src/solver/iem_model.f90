@@ -331,6 +331,19 @@ module iem_model
       logical, intent(in) :: inertia
       type(exact_sum_t), intent(inout) :: sums(:)
     end subroutine model_reaction_sums
+    !> The loads fext at time t (their scales in load_scale): rebuilt only when a time
+    !> function has changed.
+    module subroutine model_set_loads(this, t)
+      class(model_t), intent(inout) :: this
+      real(wp), intent(in) :: t
+    end subroutine model_set_loads
+
+    !> The power of the last evaluation's loads (pe_slot) and of the reactions that enter it
+    !> (pr_bc where pr_on), each summed in its order.
+    module pure real(wp) function model_external_power(this) result(p)
+      class(model_t), intent(in) :: this
+    end function model_external_power
+
     !> Build the model of this rank from the configuration, its body and its local lattice;
     !> n_selected counts, per &bc then per &load, the owned nodes each selects (the caller
     !> sums them). A failed allocation is handed to guard (the model is then incomplete);

@@ -27,25 +27,12 @@ contains
   module procedure model_verlet_pair
     ! the prescribed dofs mended so far (as the run's pass left them, to be put back should a
     ! later node's kick not be finite)
-    real(wp) :: kept(2, size(this%bc_node)), pd, r, none
-    integer :: mended(size(this%bc_node)), nb, done(2), jb, js, n_mended, ld, n, s, b
-    logical :: changed, stopped, timed
+    real(wp) :: kept(2, size(this%bc_node)), pd, none
+    integer :: mended(size(this%bc_node)), nb, done(2), jb, js, n_mended, n, b
+    logical :: stopped, timed
 
     nb = this%bands%n_bands()
-    ! the step's loads at t1 (model_rate's rebuild_loads)
-    changed = .false.
-    do ld = 1, size(this%load_tf)
-      r = tf_value(this%load_tf(ld), t1)
-      if (r /= this%load_scale(ld)) changed = .true.
-      this%load_scale(ld) = r
-    end do
-    if (changed) then
-      this%fext = 0.0_wp
-      do n = 1, size(this%load_node)
-        s = this%load_slot(n)
-        this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
-      end do
-    end if
+    call model_set_loads(this, t1)
     if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) then
       deallocate(this%pw_node)
       allocate(this%pw_node(lat%n_owned), source=0.0_wp)
@@ -75,13 +62,7 @@ contains
     paired = .not. stopped
     ! the sums in model_rate's order: the loads' powers, then the reactions' that enter p_ext;
     ! the mass damping powers in node order (the cells' damping power is 0 here)
-    p_ext = 0.0_wp
-    do s = 1, size(this%ext_node)
-      p_ext = p_ext + this%pe_slot(s)
-    end do
-    do n = 1, size(this%bc_node)
-      if (this%pr_on(n)) p_ext = p_ext + this%pr_bc(n)
-    end do
+    p_ext = model_external_power(this)
     p_damp = 0.0_wp
     if (this%alpha > 0.0_wp) then
       do n = 1, lat%n_owned

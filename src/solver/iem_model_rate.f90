@@ -12,9 +12,8 @@ contains
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_rate
-    real(wp) :: r
-    integer :: l, b, ld, comp, n, s
-    logical :: changed, accept, keep, timed, energies, ready
+    integer :: l, b, comp, n, s
+    logical :: accept, keep, timed, energies, ready
 
     ! cell forces (internal + stiffness damping) summed per node in ascending cell order, so
     ! bitwise the same on any number of ranks; energy and damping power of counted cells
@@ -345,32 +344,14 @@ contains
       if (this%omega_cap > 0.0_wp) call filter_rates(lat%n_owned, this%omega_cap, y, acc)
     end subroutine imposed_rates
 
-    !> p_ext: the loads' powers pe_slot, then the reactions' powers pr_bc that enter it
-    !> (pr_on), each in its order.
+    !> p_ext: the loads' powers, then the reactions' that enter it (model_external_power).
     subroutine external_power()
-      p_ext = 0.0_wp
-      do s = 1, size(this%ext_node)
-        p_ext = p_ext + this%pe_slot(s)
-      end do
-      do n = 1, size(this%bc_node)
-        if (this%pr_on(n)) p_ext = p_ext + this%pr_bc(n)
-      end do
+      p_ext = model_external_power(this)
     end subroutine external_power
 
-    !> The external loads fext at t: rebuilt only when a time function has changed.
+    !> The external loads fext at t (model_set_loads).
     subroutine rebuild_loads()
-      changed = .false.
-      do ld = 1, size(this%load_tf)
-        r = tf_value(this%load_tf(ld), t)
-        if (r /= this%load_scale(ld)) changed = .true.
-        this%load_scale(ld) = r
-      end do
-      if (.not. changed) return
-      this%fext = 0.0_wp
-      do n = 1, size(this%load_node)
-        s = this%load_slot(n)
-        this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
-      end do
+      call model_set_loads(this, t)
     end subroutine rebuild_loads
 
     !> The halo exchange (1), its start (2) or its finish (3), timed as such.

@@ -64,4 +64,34 @@ contains
       call sums(2*(series(b) - 1) + comp)%add(r)
     end do
   end procedure model_reaction_sums
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_set_loads
+    real(wp) :: r
+    integer :: ld, n, s
+    logical :: changed
+    changed = .false.
+    do ld = 1, size(this%load_tf)
+      r = tf_value(this%load_tf(ld), t)
+      if (r /= this%load_scale(ld)) changed = .true.
+      this%load_scale(ld) = r
+    end do
+    if (.not. changed) return
+    this%fext = 0.0_wp
+    do n = 1, size(this%load_node)
+      s = this%load_slot(n)
+      this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+    end do
+  end procedure model_set_loads
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_external_power
+    integer :: s, n
+    p = 0.0_wp
+    do s = 1, size(this%ext_node)
+      p = p + this%pe_slot(s)
+    end do
+    do n = 1, size(this%bc_node)
+      if (this%pr_on(n)) p = p + this%pr_bc(n)
+    end do
+  end procedure model_external_power
 end submodule iem_model_sums
