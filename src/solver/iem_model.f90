@@ -338,6 +338,22 @@ module iem_model
       real(wp), intent(in) :: t
     end subroutine model_set_loads
 
+    !> The terms of the owned nodes lo..hi at the state y at time t, whose cell forces are
+    !> complete in fs, before a pass over them: the reactions (keep: kept) and reaction powers
+    !> of their prescribed dofs, their loads' powers and loads (taken off fs), their mass
+    !> damping powers (pw_node; the sums are the caller's). jb and js: where the search in
+    !> bc_by_node and the load slots starts, left after the run (j0: its first dof).
+    module subroutine model_run_terms(this, lo, hi, fs, y, t, keep, jb, js, j0)
+      class(model_t), intent(inout) :: this
+      integer, intent(in) :: lo, hi
+      real(wp), intent(inout), contiguous :: fs(:, :)
+      real(wp), intent(in), contiguous :: y(:, :)
+      real(wp), intent(in) :: t
+      logical, intent(in) :: keep
+      integer, intent(inout) :: jb, js
+      integer, intent(out) :: j0
+    end subroutine model_run_terms
+
     !> The power of the last evaluation's loads (pe_slot) and of the reactions that enter it
     !> (pr_bc where pr_on), each summed in its order.
     module pure real(wp) function model_external_power(this) result(p)

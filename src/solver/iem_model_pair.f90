@@ -10,7 +10,7 @@
 !> theirs.
 submodule (iem_model) iem_model_pair
   use iem_timers, only: timer_switch, t_force, t_update
-  use iem_node_pass, only: accelerations_in_place, mass_damping_powers
+  use iem_node_pass, only: accelerations_in_place
   implicit none
 
 contains
@@ -27,7 +27,7 @@ contains
   module procedure model_verlet_pair
     ! the prescribed dofs mended so far (as the run's pass left them, to be put back should a
     ! later node's kick not be finite)
-    real(wp) :: kept(2, size(this%bc_node)), pd, none
+    real(wp) :: kept(2, size(this%bc_node)), pd
     integer :: mended(size(this%bc_node)), nb, done(2), jb, js, n_mended, n, b
     logical :: stopped, timed
 
@@ -84,7 +84,7 @@ contains
       do k = this%bands%run_first(b), this%bands%run_first(b + 1) - 1
         lo = this%bands%runs(1, k)
         hi = this%bands%runs(2, k)
-        call run_terms(lo, hi, j0)
+        call model_run_terms(this, lo, hi, acc, y, t1, .true., jb, js, j0)
         call accelerations_in_place(hi - lo + 1, this%alpha, this%mass(lo:hi), y(:, lo:hi), &
                                     acc(:, lo:hi), h, bad, dt)
         if (bad /= 0 .and. first_bad == 0) then
@@ -118,41 +118,6 @@ contains
       stopped = .true.
       acc(:, 1:this%bands%done(this%wave%need(b))) = 0.0_wp
     end subroutine stop_next
-
-    !> The terms of the nodes lo..hi, whose forces are complete in acc, as model_rate forms
-    !> them before its pass: the reactions of their prescribed dofs (from j0, the run's first
-    !> in bc_by_node), their loads' powers and loads, their mass damping powers.
-    subroutine run_terms(lo, hi, j0)
-      integer, intent(in) :: lo, hi
-      integer, intent(out) :: j0
-      integer :: q, l
-      do while (jb <= size(this%bc_by_node))
-        if (this%bc_node(this%bc_by_node(jb)) >= lo) exit
-        jb = jb + 1
-      end do
-      j0 = jb
-      do while (jb <= size(this%bc_by_node))
-        q = this%bc_by_node(jb)
-        if (this%bc_node(q) > hi) exit
-        call this%reaction_terms(q, acc, y, t1, this%fext, .true., this%pr_bc(q), this%pr_on(q))
-        jb = jb + 1
-      end do
-      do while (js <= size(this%ext_node))
-        if (this%ext_node(js) >= lo) exit
-        js = js + 1
-      end do
-      do while (js <= size(this%ext_node))
-        l = this%ext_node(js)
-        if (l > hi) exit
-        this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
-        acc(:, l) = acc(:, l) - this%fext(:, js)
-        js = js + 1
-      end do
-      none = 0.0_wp
-      if (this%alpha > 0.0_wp) call mass_damping_powers(hi - lo + 1, this%alpha, &
-                                                        this%mass(lo:hi), y(:, lo:hi), &
-                                                        this%pw_node(lo:hi), none)
-    end subroutine run_terms
 
     !> iem_verlet's mend_prescribed for the dofs bc_by_node(j1..j2): their velocities at the
     !> next step's half step and, until released, their displacements u_bc + dt v; what the

@@ -182,34 +182,9 @@ contains
       real(wp), intent(inout), contiguous :: fs(:, :)
       integer, intent(in) :: lo, hi
       integer, intent(inout) :: jb, js
-      real(wp) :: total, none
-      do while (jb <= size(this%bc_by_node))
-        if (this%bc_node(this%bc_by_node(jb)) >= lo) exit
-        jb = jb + 1
-      end do
-      do while (jb <= size(this%bc_by_node))
-        if (this%bc_node(this%bc_by_node(jb)) > hi) exit
-        call this%reaction_terms(this%bc_by_node(jb), fs, y, t, this%fext, keep, &
-                                 this%pr_bc(this%bc_by_node(jb)), &
-                                 this%pr_on(this%bc_by_node(jb)))
-        jb = jb + 1
-      end do
-      do while (js <= size(this%ext_node))
-        if (this%ext_node(js) >= lo) exit
-        js = js + 1
-      end do
-      do while (js <= size(this%ext_node))
-        if (this%ext_node(js) > hi) exit
-        associate(l => this%ext_node(js))
-          this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
-          fs(:, l) = fs(:, l) - this%fext(:, js)
-        end associate
-        js = js + 1
-      end do
-      none = 0.0_wp
-      if (this%alpha > 0.0_wp) call mass_damping_powers(hi - lo + 1, this%alpha, &
-                                                        this%mass(lo:hi), y(:, lo:hi), &
-                                                        this%pw_node(lo:hi), none)
+      real(wp) :: total
+      integer :: j0
+      call model_run_terms(this, lo, hi, fs, y, t, keep, jb, js, j0)
       associate(n_b => hi - lo + 1)
         select case (stage%stage)
         case (1)

@@ -2,6 +2,7 @@
 !> documented at their interfaces in iem_model.f90): the work and dissipation of a step's
 !> evaluations, and a rank's energies and reactions for the history's exact global sums.
 submodule (iem_model) iem_model_sums
+  use iem_node_pass, only: mass_damping_powers
   implicit none
 
 contains
@@ -94,4 +95,35 @@ contains
       if (this%pr_on(n)) p = p + this%pr_bc(n)
     end do
   end procedure model_external_power
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_run_terms
+    real(wp) :: none
+    integer :: q, l
+    do while (jb <= size(this%bc_by_node))
+      if (this%bc_node(this%bc_by_node(jb)) >= lo) exit
+      jb = jb + 1
+    end do
+    j0 = jb
+    do while (jb <= size(this%bc_by_node))
+      q = this%bc_by_node(jb)
+      if (this%bc_node(q) > hi) exit
+      call this%reaction_terms(q, fs, y, t, this%fext, keep, this%pr_bc(q), this%pr_on(q))
+      jb = jb + 1
+    end do
+    do while (js <= size(this%ext_node))
+      if (this%ext_node(js) >= lo) exit
+      js = js + 1
+    end do
+    do while (js <= size(this%ext_node))
+      l = this%ext_node(js)
+      if (l > hi) exit
+      this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
+      fs(:, l) = fs(:, l) - this%fext(:, js)
+      js = js + 1
+    end do
+    none = 0.0_wp
+    if (this%alpha > 0.0_wp) call mass_damping_powers(hi - lo + 1, this%alpha, &
+                                                      this%mass(lo:hi), y(:, lo:hi), &
+                                                      this%pw_node(lo:hi), none)
+  end procedure model_run_terms
 end submodule iem_model_sums
