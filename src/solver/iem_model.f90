@@ -31,7 +31,11 @@ module iem_model
   use iem_input_fracture, only: material_fracture_law
   implicit none
   private
-  public :: model_t
+  public :: model_t, work_collect_steps
+
+  !> The time loop moves the nodes' mass-damping work (wd_node) into the exact sum at the
+  !> steps that are multiples of this (collect_work), the same steps on any number of ranks.
+  integer, parameter :: work_collect_steps = 16
 
   !> Everything the force evaluation of one rank needs, with preallocated work arrays.
   type :: model_t
@@ -120,8 +124,14 @@ module iem_model
     !> node field 'reaction' of width 2 (an integrator's resume evaluates without commit).
     real(wp), allocatable :: r_bc(:)
     !> External work and damping dissipation of this rank since the start: exact sums of the
-    !> weighted terms of every evaluation the integrator counts (add_work).
+    !> weighted terms of every evaluation the integrator counts (add_work). The mass
+    !> damping's terms reach w_damp_acc through wd_node.
     type(exact_sum_t) :: w_ext_acc, w_damp_acc
+    !> Each owned node's mass-damping work (its weighted powers, summed in the order of the
+    !> evaluations) since the last collect_work, which the time loop calls at fixed steps:
+    !> one exact deposit a node every few steps instead of one an evaluation (only with
+    !> mass damping, else empty). A node field ('damping_work'): moved and checkpointed.
+    real(wp), allocatable :: wd_node(:)
     !> RK4's stages as one wavefront over the bands where it applies (stages_fit;
     !> rate_stages); waves = .false. evaluates them one after the other.
     type(stage_wave_t) :: wave
@@ -131,6 +141,8 @@ module iem_model
     procedure :: rate => model_rate
     procedure :: prescribe => model_prescribe
     procedure :: add_work => model_add_work
+    procedure :: collect_work => model_collect_work
+    procedure :: damping_work => model_damping_work
     procedure :: energy_sums => model_energy_sums
     procedure :: reaction_sums => model_reaction_sums
     procedure :: rate_columns => model_rate_columns
@@ -168,7 +180,7 @@ module iem_model
     !> dofs included: their values are the caller's to set).
     module subroutine model_rate(this, lat, y, t, acc, p_ext, p_damp, commit, record, stage, &
                                  y0, ynew, ynext, kick, halo, vote, vote_all, first_bad, drift, &
-                                 cells_done)
+                                 cells_done, fold)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       real(wp), intent(inout), contiguous :: y(:, :)
@@ -196,6 +208,9 @@ module iem_model
       real(wp), intent(in), optional :: drift
       !> The cells' forces at y are in acc already (the last verlet_pair's next step).
       logical, intent(in), optional :: cells_done
+      !> The evaluation's weight in the step's work: the nodes' mass damping work is folded
+      !> into wd_node as the powers are formed (add_work is then told so).
+      real(wp), intent(in), optional :: fold
     end subroutine model_rate
 
     !> The cell forces of the chunks of table (range: only those; at: the split's routed
@@ -268,7 +283,8 @@ module iem_model
     !> as iem_verlet's mend_prescribed does). Bit for bit model_rate's results, and the next
     !> step's forces those of its evaluation (cells_done) where paired (not where fracture
     !> damages a cell there: its commit would change the cell); first_bad as model_rate's
-    !> (then no dof is mended and acc is as model_rate leaves it). iem_model_pair.f90.
+    !> (then no dof is mended and acc is as model_rate leaves it); the nodes' mass damping
+    !> work folded with the weight dt (model_rate's fold). iem_model_pair.f90.
     module subroutine model_verlet_pair(this, lat, y, t1, t_next, h, dt, acc, u_bc, ready, &
                                         p_ext, p_damp, first_bad, paired)
       class(model_t), intent(inout) :: this
@@ -299,13 +315,29 @@ module iem_model
     end function model_stages_fit
 
     !> Add the powers of the last rate evaluation, each times wdt (its weight in the time
-    !> integral of the step), to the external work and the damping dissipation, exactly;
-    !> the cells counted are this rank's (lat: the lattice of the evaluation).
-    module subroutine model_add_work(this, lat, wdt)
+    !> integral of the step), to the external work and the damping dissipation, exactly (the
+    !> mass damping's to each node's wd_node); the cells counted are this rank's (lat: the
+    !> lattice of the evaluation).
+    module subroutine model_add_work(this, lat, wdt, folded)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       real(wp), intent(in) :: wdt
+      !> The evaluation folded its mass damping work already (its fold argument was wdt).
+      logical, intent(in), optional :: folded
     end subroutine model_add_work
+
+    !> Move each owned node's mass-damping work (wd_node) into w_damp_acc exactly and clear it.
+    module subroutine model_collect_work(this, lat)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+    end subroutine model_collect_work
+
+    !> This rank's damping dissipation so far, exactly: w_damp_acc and the nodes' wd_node.
+    module function model_damping_work(this, lat) result(acc)
+      class(model_t), intent(in) :: this
+      type(local_lattice_t), intent(in) :: lat
+      type(exact_sum_t) :: acc
+    end function model_damping_work
 
     !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of
     !> the last rate evaluation (counted cells), the external work, the damping dissipation
@@ -343,7 +375,7 @@ module iem_model
     !> of their prescribed dofs, their loads' powers and loads (taken off fs), their mass
     !> damping powers (pw_node; the sums are the caller's). jb and js: where the search in
     !> bc_by_node and the load slots starts, left after the run (j0: its first dof).
-    module subroutine model_run_terms(this, lo, hi, fs, y, t, keep, jb, js, j0)
+    module subroutine model_run_terms(this, lo, hi, fs, y, t, keep, jb, js, j0, fold)
       class(model_t), intent(inout) :: this
       integer, intent(in) :: lo, hi
       real(wp), intent(inout), contiguous :: fs(:, :)
@@ -352,7 +384,24 @@ module iem_model
       logical, intent(in) :: keep
       integer, intent(inout) :: jb, js
       integer, intent(out) :: j0
+      !> The evaluation's weight in the step's work: its mass damping work folded (wd_node).
+      real(wp), intent(in), optional :: fold
     end subroutine model_run_terms
+
+    !> The mass damping powers of the nodes lo..hi at the last evaluation (pw_node), times
+    !> wdt, added to their wd_node (each node's terms in the order of the evaluations).
+    module subroutine model_fold_work(this, lo, hi, wdt)
+      class(model_t), intent(inout) :: this
+      integer, intent(in) :: lo, hi
+      real(wp), intent(in) :: wdt
+    end subroutine model_fold_work
+
+    !> The damping's terms sized for lat (pw_cell with stiffness damping, pw_node and
+    !> wd_node with mass damping), zeros where new: the damping may be set after init.
+    module subroutine model_damping_arrays(this, lat)
+      class(model_t), intent(inout) :: this
+      type(local_lattice_t), intent(in) :: lat
+    end subroutine model_damping_arrays
 
     !> The power of the last evaluation's loads (pe_slot) and of the reactions that enter it
     !> (pr_bc where pr_on), each summed in its order.

@@ -33,10 +33,7 @@ contains
 
     nb = this%bands%n_bands()
     call model_set_loads(this, t1)
-    if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) then
-      deallocate(this%pw_node)
-      allocate(this%pw_node(lat%n_owned), source=0.0_wp)
-    end if
+    call model_damping_arrays(this, lat)
     first_bad = 0
     n_mended = 0
     jb = 1
@@ -84,7 +81,7 @@ contains
       do k = this%bands%run_first(b), this%bands%run_first(b + 1) - 1
         lo = this%bands%runs(1, k)
         hi = this%bands%runs(2, k)
-        call model_run_terms(this, lo, hi, acc, y, t1, .true., jb, js, j0)
+        call model_run_terms(this, lo, hi, acc, y, t1, .true., jb, js, j0, fold=dt)
         call accelerations_in_place(hi - lo + 1, this%alpha, this%mass(lo:hi), y(:, lo:hi), &
                                     acc(:, lo:hi), h, bad, dt)
         if (bad /= 0 .and. first_bad == 0) then

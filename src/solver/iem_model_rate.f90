@@ -30,14 +30,7 @@ contains
     accept = .false.
     if (present(commit)) accept = commit
     ! the damping powers' terms exist only with that damping (set after init: made once here)
-    if (this%beta > 0.0_wp .and. size(this%pw_cell) < lat%n_cells) then
-      deallocate(this%pw_cell)
-      allocate(this%pw_cell(lat%n_cells), source=0.0_wp)
-    end if
-    if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) then
-      deallocate(this%pw_node)
-      allocate(this%pw_node(lat%n_owned), source=0.0_wp)
-    end if
+    call model_damping_arrays(this, lat)
     ! the cells' forces are summed into model%f, or (sum_in_acc) into acc itself; an RK4
     ! stage without stiffness damping goes band by band (bands%active; with halo nodes, when
     ! the halo is exchanged here)
@@ -184,7 +177,7 @@ contains
       integer, intent(inout) :: jb, js
       real(wp) :: total
       integer :: j0
-      call model_run_terms(this, lo, hi, fs, y, t, keep, jb, js, j0)
+      call model_run_terms(this, lo, hi, fs, y, t, keep, jb, js, j0, fold)
       associate(n_b => hi - lo + 1)
         select case (stage%stage)
         case (1)
@@ -246,7 +239,7 @@ contains
       end do
       call external_power()
       if (this%alpha > 0.0_wp) call mass_damping_powers(lat%n_owned, this%alpha, this%mass, y, &
-                                                        this%pw_node, p_damp)
+                                                        this%pw_node, p_damp, this%wd_node, fold)
       ! the loads act as negative cell forces; then the pass over the owned nodes, which clears
       ! f: accelerations, or an RK4 stage's update
       do s = 1, size(this%ext_node)

@@ -53,10 +53,7 @@ contains
           wv%fx(:, s, i) = wv%fx(:, s, i) + this%load_force(:, n)*wv%scale(this%load_id(n), i)
         end do
       end do
-      if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) then
-        deallocate(this%pw_node)
-        allocate(this%pw_node(lat%n_owned), source=0.0_wp)
-      end if
+      call model_damping_arrays(this, lat)
       pd = 0.0_wp
       sums = 0.0_wp
       jb = 1
@@ -176,8 +173,7 @@ contains
         end do
         if (this%alpha > 0.0_wp) then
           call mass_damping_powers(hi - lo + 1, this%alpha, this%mass(lo:hi), y(:, lo:hi), &
-                                   this%pw_node(lo:hi), pd(i))
-          call this%w_damp_acc%add_scaled(this%pw_node(lo:hi), wdt(i))
+                                   this%pw_node(lo:hi), pd(i), this%wd_node(lo:hi), wdt(i))
         end if
       end associate
     end subroutine run_terms

@@ -27,8 +27,57 @@ contains
         call this%w_damp_acc%add_scaled(counted(1:k), wdt)
       end do
     end if
-    if (this%alpha > 0.0_wp) call this%w_damp_acc%add_scaled(this%pw_node(1:lat%n_owned), wdt)
+    if (present(folded)) then
+      if (folded) return
+    end if
+    if (this%alpha > 0.0_wp) then
+      call model_damping_arrays(this, lat)
+      call model_fold_work(this, 1, lat%n_owned, wdt)
+    end if
   end procedure model_add_work
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_collect_work
+    if (this%alpha <= 0.0_wp .or. size(this%wd_node) == 0) return
+    call this%w_damp_acc%add(this%wd_node(1:min(lat%n_owned, size(this%wd_node))))
+    this%wd_node = 0.0_wp
+  end procedure model_collect_work
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_damping_work
+    acc = this%w_damp_acc
+    if (this%alpha > 0.0_wp .and. size(this%wd_node) > 0) &
+      call acc%add(this%wd_node(1:min(lat%n_owned, size(this%wd_node))))
+  end procedure model_damping_work
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_fold_work
+    integer :: l
+    do l = lo, hi
+      this%wd_node(l) = this%wd_node(l) + wdt*this%pw_node(l)
+    end do
+  end procedure model_fold_work
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_damping_arrays
+    if (this%beta > 0.0_wp .and. size(this%pw_cell) < lat%n_cells) &
+      call grow(this%pw_cell, lat%n_cells)
+    if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) &
+      call grow(this%pw_node, lat%n_owned)
+    if (this%alpha > 0.0_wp .and. size(this%wd_node) < lat%n_owned) &
+      call grow(this%wd_node, lat%n_owned)
+  contains
+
+    !> a resized to n values, the old ones kept, the new ones 0.
+    subroutine grow(a, n)
+      real(wp), allocatable, intent(inout) :: a(:)
+      integer, intent(in) :: n
+      real(wp), allocatable :: b(:)
+      allocate(b(n), source=0.0_wp)
+      b(1:size(a)) = a
+      call move_alloc(b, a)
+    end subroutine grow
+  end procedure model_damping_arrays
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_energy_sums
@@ -38,7 +87,7 @@ contains
     end do
     sums(2) = this%en_sum
     sums(3) = this%w_ext_acc
-    sums(4) = this%w_damp_acc
+    sums(4) = this%damping_work(lat)
     if (this%fracture) then
       do j = 1, lat%cells%n_chunks()
         call lat%first_corners(j, fc, m)
@@ -122,8 +171,13 @@ contains
       js = js + 1
     end do
     none = 0.0_wp
-    if (this%alpha > 0.0_wp) call mass_damping_powers(hi - lo + 1, this%alpha, &
-                                                      this%mass(lo:hi), y(:, lo:hi), &
-                                                      this%pw_node(lo:hi), none)
+    if (this%alpha <= 0.0_wp) return
+    if (present(fold)) then
+      call mass_damping_powers(hi - lo + 1, this%alpha, this%mass(lo:hi), y(:, lo:hi), &
+                               this%pw_node(lo:hi), none, this%wd_node(lo:hi), fold)
+    else
+      call mass_damping_powers(hi - lo + 1, this%alpha, this%mass(lo:hi), y(:, lo:hi), &
+                               this%pw_node(lo:hi), none)
+    end if
   end procedure model_run_terms
 end submodule iem_model_sums

@@ -379,19 +379,31 @@ contains
   end subroutine rk4_last_pass
 
   !> The mass damping's power alpha m |v|^2 of each of the nodes 1..n of the state y in pw,
-  !> and their sum, in node order, added to p. (Out of model_rate's internal
+  !> and their sum, in node order, added to p; with wd and w, each power times w added to
+  !> the node's wd too (its work folded, model_t's wd_node). (Out of model_rate's internal
   !> procedure, whose host variables gfortran kept in memory: a store and a load a node.)
-  pure subroutine mass_damping_powers(n, alpha, mass, y, pw, p)
+  pure subroutine mass_damping_powers(n, alpha, mass, y, pw, p, wd, w)
     integer, intent(in) :: n
     real(wp), intent(in) :: alpha, mass(:), y(:, :)
     real(wp), intent(inout) :: pw(:), p
-    real(wp) :: sum_p
+    real(wp), intent(inout), optional :: wd(:)
+    real(wp), intent(in), optional :: w
+    real(wp) :: sum_p, pl
     integer :: l
     sum_p = p
-    do l = 1, n
-      pw(l) = alpha*mass(l)*(y(3, l)**2 + y(4, l)**2)
-      sum_p = sum_p + pw(l)
-    end do
+    if (present(wd) .and. present(w)) then
+      do l = 1, n
+        pl = alpha*mass(l)*(y(3, l)**2 + y(4, l)**2)
+        pw(l) = pl
+        sum_p = sum_p + pl
+        wd(l) = wd(l) + w*pl
+      end do
+    else
+      do l = 1, n
+        pw(l) = alpha*mass(l)*(y(3, l)**2 + y(4, l)**2)
+        sum_p = sum_p + pw(l)
+      end do
+    end if
     p = sum_p
   end subroutine mass_damping_powers
 end module iem_node_pass

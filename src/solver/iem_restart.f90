@@ -127,7 +127,7 @@ contains
     h%last_balance = this%last_balance
     ! the header records the global work rounded (for people); the exact state of each rank's
     ! accumulators goes in its slot
-    acc = [this%model%w_ext_acc, this%model%w_damp_acc]
+    acc = [this%model%w_ext_acc, this%model%damping_work(this%lat)]
     call exact_sum_allreduce(acc, this%comm)
     h%w_ext = acc(1)%value()
     h%w_damp = acc(2)%value()

@@ -228,6 +228,7 @@ contains
                                       st%ynew, st%ys, total)
     if (first == 2) then
       w_ext = w_ext + weight(1)*dt*st%p_ext1
+      ! (stage 1's work counts from here, after the step's sample: not folded in prepare)
       call model%add_work(lat, weight(1)*dt)
       w_damp = w_damp + weight(1)*dt*st%p_damp1
     end if
@@ -261,7 +262,7 @@ contains
         stg%h = 0.0_wp
         if (stage < 4) stg%h = frac(stage + 1)*dt
         call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp, stage=stg, &
-                        y0=st%y, ynew=st%ynew, halo=halo)
+                        y0=st%y, ynew=st%ynew, halo=halo, fold=stg%wdt)
         total = stg%total
       else
         call model%rate(lat, st%ys, t + frac(stage)*dt, st%acc, p_ext, p_damp, halo=halo)
@@ -269,7 +270,7 @@ contains
       call timer_stop(t_force)
       call timer_start(t_update)
       w_ext = w_ext + weight(stage)*dt*p_ext
-      call model%add_work(lat, weight(stage)*dt)
+      call model%add_work(lat, weight(stage)*dt, folded=fuse)
       w_damp = w_damp + weight(stage)*dt*p_damp
       if (fuse) cycle
       if (stage < 4) then

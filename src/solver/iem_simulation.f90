@@ -15,7 +15,7 @@ module iem_simulation
   use iem_body, only: body_t
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
-  use iem_model, only: model_t
+  use iem_model, only: model_t, work_collect_steps
   use iem_state, only: state_t
   use iem_integrator, only: integrator_t
   use iem_relaxation, only: relaxation_t
@@ -454,6 +454,9 @@ contains
           if (stat /= 0) return
         end if
       end if
+      ! each node's mass-damping work of the last steps into the exact sum, at steps that do
+      ! not depend on the ranks (docs/numerics.md)
+      if (mod(k, int(work_collect_steps, i8)) == 0) call this%model%collect_work(this%lat)
       ! a history sample at this step; the cells' energies only for the states one reads
       sampled = sample_due(this, k, t_prev, t)
       this%model%energies_due = sampled

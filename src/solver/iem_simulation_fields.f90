@@ -60,6 +60,8 @@ contains
     call real_field('y', centre_node, ns, this%st%y, .true.)
     call real_field('acc', centre_node, ns - 2, this%st%acc, .true.)
     call reaction_field()
+    if (this%model%alpha > 0.0_wp) &
+      call real_field('damping_work', centre_node, 1, this%model%wd_node, .true.)
     if (this%model%nonlinear) then
       depth = int(this%model%nl%state%depth)
       associate(s => this%model%nl%state)

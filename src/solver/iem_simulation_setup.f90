@@ -297,6 +297,7 @@ contains
     mc%nonlinear = any(this%cfg%materials(:)%nonlinear)
     mc%depth = maxval(this%cfg%materials(:)%history_depth)
     mc%fracture = any(this%cfg%materials(:)%fracture) .or. any(this%cfg%shapes(:)%crack)
+    mc%mass_damping = this%cfg%damping%alpha > 0.0_wp
     need = memory_estimate(mc)
     call memory_check(this%comm, need, label, stat, msg, info)
     if (stat == 0) call log_info(info)

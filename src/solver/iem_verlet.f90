@@ -354,19 +354,21 @@ contains
       ! (the next step's first part: the prescribed dofs mended from their displacements here)
       call keep_prescribed(model, st%y, u_bc)
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., kick=h, &
-                      halo=halo, first_bad=bad, drift=dt, cells_done=done)
+                      halo=halo, first_bad=bad, drift=dt, cells_done=done, fold=dt)
     else if (fuse) then
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., kick=h, &
-                      halo=halo, first_bad=bad, cells_done=done)
+                      halo=halo, first_bad=bad, cells_done=done, fold=dt)
     else
-      call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., halo=halo)
+      call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., halo=halo, &
+                      fold=dt)
     end if
     call timer_stop(t_force)
     call timer_start(t_update)
     ! the powers are those of the half-step velocity: exact work of constant forces
     w_ext = w_ext + dt*p_ext
     w_damp = w_damp + dt*p_damp
-    call model%add_work(lat, dt)
+    ! (each evaluation above folded its nodes' mass damping work with the weight dt)
+    call model%add_work(lat, dt, folded=.true.)
     ! kick: v(t + dt)
     if (.not. fuse) call guarded_kick(n, h, st%acc, st%y, bad)
     if (present(first_bad)) first_bad = bad
