@@ -53,8 +53,9 @@ module iem_memory
     integer :: depth = 8
     !> Whether the cells keep a fracture state (docs/model.md, "Fracture").
     logical :: fracture = .false.
-    !> Whether mass damping keeps its powers and folded work a node (16 bytes).
-    logical :: mass_damping = .false.
+    !> Whether mass damping keeps its powers and folded work a node (16 bytes), stiffness
+    !> damping a cell.
+    logical :: mass_damping = .false., stiffness_damping = .false.
   end type memory_case_t
 
   !> Estimated peak bytes of each rank (every rank holds its share only), in the set-up
@@ -97,6 +98,8 @@ contains
     per_node = lattice_node_bytes + model_node_bytes + state + lattice_cell_bytes*cells_per_node
     ! mass damping: each node's power and its folded work (model_t's pw_node, wd_node)
     if (mc%mass_damping .and. trim(mc%integrator) /= 'static') per_node = per_node + 16.0_wp
+    if (mc%stiffness_damping .and. trim(mc%integrator) /= 'static') &
+      per_node = per_node + 16.0_wp*cells_per_node
     spring = 0.0_wp
     ! nonlinear springs: the history (48 B and the stack), per cell 8 B, and their curves
     ! (48 B and the 8 B of the unused column that staggers them in the cache) where trial
@@ -118,6 +121,7 @@ contains
     if (trim(mc%integrator) /= 'static') then
       ckpt = 2.0_wp*8.0_wp*(2.0_wp*ns - 2.0_wp) + 12.0_wp + 8.0_wp*cells_per_node
       if (mc%mass_damping) ckpt = ckpt + 2.0_wp*8.0_wp
+      if (mc%stiffness_damping) ckpt = ckpt + 2.0_wp*8.0_wp*cells_per_node
       if (mc%nonlinear) ckpt = ckpt + &
         2.0_wp*8.0_wp*springs_per_cell*(7.0_wp + 2.0_wp*mc%depth)*cells_per_node
       if (mc%fracture) ckpt = ckpt + 2.0_wp*8.0_wp*29.0_wp*cells_per_node

@@ -132,6 +132,10 @@ module iem_model
     !> one exact deposit a node every few steps instead of one an evaluation (only with
     !> mass damping, else empty). A node field ('damping_work'): moved and checkpointed.
     real(wp), allocatable :: wd_node(:)
+    !> Likewise each local cell's stiffness-damping work (only with stiffness damping, else
+    !> empty; every copy of a cell folds the same terms, the counted one is collected): the
+    !> cell field 'cell_damping_work'.
+    real(wp), allocatable :: wd_cell(:)
     !> RK4's stages as one wavefront over the bands where it applies (stages_fit;
     !> rate_stages); waves = .false. evaluates them one after the other.
     type(stage_wave_t) :: wave
@@ -315,9 +319,9 @@ module iem_model
     end function model_stages_fit
 
     !> Add the powers of the last rate evaluation, each times wdt (its weight in the time
-    !> integral of the step), to the external work and the damping dissipation, exactly (the
-    !> mass damping's to each node's wd_node); the cells counted are this rank's (lat: the
-    !> lattice of the evaluation).
+    !> integral of the step), to the external work exactly and to the damping dissipation
+    !> (each node's wd_node, each cell's wd_cell: collect_work moves them into the exact sum);
+    !> lat: the lattice of the evaluation.
     module subroutine model_add_work(this, lat, wdt, folded)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
@@ -326,13 +330,15 @@ module iem_model
       logical, intent(in), optional :: folded
     end subroutine model_add_work
 
-    !> Move each owned node's mass-damping work (wd_node) into w_damp_acc exactly and clear it.
+    !> Move each owned node's mass-damping work (wd_node) and each counted cell's
+    !> stiffness-damping work (wd_cell) into w_damp_acc exactly and clear them.
     module subroutine model_collect_work(this, lat)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
     end subroutine model_collect_work
 
-    !> This rank's damping dissipation so far, exactly: w_damp_acc and the nodes' wd_node.
+    !> This rank's damping dissipation so far, exactly: w_damp_acc, the nodes' wd_node and the
+    !> counted cells' wd_cell.
     module function model_damping_work(this, lat) result(acc)
       class(model_t), intent(in) :: this
       type(local_lattice_t), intent(in) :: lat
@@ -396,8 +402,8 @@ module iem_model
       real(wp), intent(in) :: wdt
     end subroutine model_fold_work
 
-    !> The damping's terms sized for lat (pw_cell with stiffness damping, pw_node and
-    !> wd_node with mass damping), zeros where new: the damping may be set after init.
+    !> The damping's terms sized for lat (pw_cell and wd_cell with stiffness damping, pw_node
+    !> and wd_node with mass damping), zeros where new: the damping may be set after init.
     module subroutine model_damping_arrays(this, lat)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat

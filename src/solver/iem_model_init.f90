@@ -215,10 +215,10 @@ contains
     if (this%beta > 0.0_wp) nd = lat%n_cells
     na = 0
     if (this%alpha > 0.0_wp) na = lat%n_owned
-    allocate(this%pw_cell(nd), this%pw_node(na), this%wd_node(na), &
+    allocate(this%pw_cell(nd), this%wd_cell(nd), this%pw_node(na), this%wd_node(na), &
              this%pe_slot(size(this%ext_node)), this%pr_bc(size(this%bc_node)), &
              this%r_bc(size(this%bc_node)), this%pr_on(size(this%bc_node)), stat=ierr)
-    call g%note(ierr, 'the energy terms of the rank', 8.0_wp*nd + &
+    call g%note(ierr, 'the energy terms of the rank', 16.0_wp*nd + &
                 8.0_wp*(2*na + 2*size(this%bc_node)) + 4.0_wp*size(this%bc_node))
     if (g%failed) then
       call g%pass(guard)
@@ -226,6 +226,7 @@ contains
     end if
     call this%en_sum%reset()
     this%pw_cell = 0.0_wp
+    this%wd_cell = 0.0_wp
     this%pw_node = 0.0_wp
     this%wd_node = 0.0_wp
     this%pe_slot = 0.0_wp

@@ -9,22 +9,14 @@ contains
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_add_work
-    integer :: c, j, m, c0, k, fc(max_chunk)
-    real(wp) :: counted(max_chunk)
+    integer :: c
     call this%w_ext_acc%add_scaled(this%pe_slot, wdt)
     call this%w_ext_acc%add_scaled(this%pr_bc, wdt)
     if (this%beta > 0.0_wp) then
-      ! the counted cells (first corner owned), a chunk at a time
-      do j = 1, lat%cells%n_chunks()
-        call lat%first_corners(j, fc, m)
-        c0 = lat%cells%chunks(1, j) - 1
-        k = 0
-        do c = 1, m
-          if (fc(c) > lat%n_owned) cycle
-          k = k + 1
-          counted(k) = this%pw_cell(c0 + c)
-        end do
-        call this%w_damp_acc%add_scaled(counted(1:k), wdt)
+      ! every local cell's (the counted ones are collected)
+      call model_damping_arrays(this, lat)
+      do c = 1, lat%n_cells
+        this%wd_cell(c) = this%wd_cell(c) + wdt*this%pw_cell(c)
       end do
     end if
     if (present(folded)) then
@@ -38,17 +30,40 @@ contains
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_collect_work
-    if (this%alpha <= 0.0_wp .or. size(this%wd_node) == 0) return
-    call this%w_damp_acc%add(this%wd_node(1:min(lat%n_owned, size(this%wd_node))))
-    this%wd_node = 0.0_wp
+    call add_folds(this, lat, this%w_damp_acc)
+    if (allocated(this%wd_node)) this%wd_node = 0.0_wp
+    if (allocated(this%wd_cell)) this%wd_cell = 0.0_wp
   end procedure model_collect_work
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_damping_work
     acc = this%w_damp_acc
+    call add_folds(this, lat, acc)
+  end procedure model_damping_work
+
+  !> The owned nodes' wd_node and the counted cells' wd_cell added to acc exactly.
+  subroutine add_folds(this, lat, acc)
+    class(model_t), intent(in) :: this
+    type(local_lattice_t), intent(in) :: lat
+    type(exact_sum_t), intent(inout) :: acc
+    integer :: c, j, m, c0, k, fc(max_chunk)
+    real(wp) :: counted(max_chunk)
     if (this%alpha > 0.0_wp .and. size(this%wd_node) > 0) &
       call acc%add(this%wd_node(1:min(lat%n_owned, size(this%wd_node))))
-  end procedure model_damping_work
+    if (this%beta <= 0.0_wp .or. size(this%wd_cell) < lat%n_cells) return
+    ! the counted cells (first corner owned), a chunk at a time
+    do j = 1, lat%cells%n_chunks()
+      call lat%first_corners(j, fc, m)
+      c0 = lat%cells%chunks(1, j) - 1
+      k = 0
+      do c = 1, m
+        if (fc(c) > lat%n_owned) cycle
+        k = k + 1
+        counted(k) = this%wd_cell(c0 + c)
+      end do
+      call acc%add(counted(1:k))
+    end do
+  end subroutine add_folds
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_fold_work
@@ -62,6 +77,8 @@ contains
   module procedure model_damping_arrays
     if (this%beta > 0.0_wp .and. size(this%pw_cell) < lat%n_cells) &
       call grow(this%pw_cell, lat%n_cells)
+    if (this%beta > 0.0_wp .and. size(this%wd_cell) < lat%n_cells) &
+      call grow(this%wd_cell, lat%n_cells)
     if (this%alpha > 0.0_wp .and. size(this%pw_node) < lat%n_owned) &
       call grow(this%pw_node, lat%n_owned)
     if (this%alpha > 0.0_wp .and. size(this%wd_node) < lat%n_owned) &

@@ -62,6 +62,8 @@ contains
     call reaction_field()
     if (this%model%alpha > 0.0_wp) &
       call real_field('damping_work', centre_node, 1, this%model%wd_node, .true.)
+    if (this%model%beta > 0.0_wp) &
+      call real_field('cell_damping_work', centre_cell, 1, this%model%wd_cell, .true.)
     if (this%model%nonlinear) then
       depth = int(this%model%nl%state%depth)
       associate(s => this%model%nl%state)

@@ -298,6 +298,7 @@ contains
     mc%depth = maxval(this%cfg%materials(:)%history_depth)
     mc%fracture = any(this%cfg%materials(:)%fracture) .or. any(this%cfg%shapes(:)%crack)
     mc%mass_damping = this%cfg%damping%alpha > 0.0_wp
+    mc%stiffness_damping = this%cfg%damping%beta > 0.0_wp .or. this%cfg%damping%kind == 'capped'
     need = memory_estimate(mc)
     call memory_check(this%comm, need, label, stat, msg, info)
     if (stat == 0) call log_info(info)
