@@ -1,6 +1,8 @@
-!> The model's exact sums (model_add_work, model_energy_sums, model_reaction_sums,
-!> documented at their interfaces in iem_model.f90): the work and dissipation of a step's
-!> evaluations, and a rank's energies and reactions for the history's exact global sums.
+!> The model's exact sums (model_add_work, model_collect_work, model_damping_work,
+!> model_energy_sums, model_reaction_sums, documented at their interfaces in iem_model.f90):
+!> the work and dissipation of a step's evaluations (the damping's folded a node and a cell
+!> at a time, then collected), and a rank's energies and reactions for the history's exact
+!> global sums; the damping's arrays and a run of nodes' terms before its pass.
 submodule (iem_model) iem_model_sums
   use iem_node_pass, only: mass_damping_powers
   implicit none
