@@ -14,9 +14,9 @@ contains
     integer :: c
     call this%w_ext_acc%add_scaled(this%pe_slot, wdt)
     call this%w_ext_acc%add_scaled(this%pr_bc, wdt)
+    call model_damping_arrays(this, lat)
     if (this%beta > 0.0_wp) then
       ! every local cell's (the counted ones are collected)
-      call model_damping_arrays(this, lat)
       do c = 1, lat%n_cells
         this%wd_cell(c) = this%wd_cell(c) + wdt*this%pw_cell(c)
       end do
@@ -24,10 +24,7 @@ contains
     if (present(folded)) then
       if (folded) return
     end if
-    if (this%alpha > 0.0_wp) then
-      call model_damping_arrays(this, lat)
-      call model_fold_work(this, 1, lat%n_owned, wdt)
-    end if
+    if (this%alpha > 0.0_wp) call model_fold_work(this, 1, lat%n_owned, wdt)
   end procedure model_add_work
 
   !> Documented at its interface in iem_model.f90.

@@ -454,8 +454,8 @@ contains
           if (stat /= 0) return
         end if
       end if
-      ! each node's mass-damping work of the last steps into the exact sum, at steps that do
-      ! not depend on the ranks (docs/numerics.md)
+      ! each node's and cell's damping work of the last steps into the exact sum, at steps
+      ! that do not depend on the ranks (docs/numerics.md)
       if (mod(k, int(work_collect_steps, i8)) == 0) call this%model%collect_work(this%lat)
       ! a history sample at this step; the cells' energies only for the states one reads
       sampled = sample_due(this, k, t_prev, t)
