@@ -168,9 +168,10 @@ module iem_model
     !> (default: trial only). With halo, the exchange of y's halo overlaps the interior cells'
     !> forces (iem_cell_split; bitwise the same results); the caller times the call as force
     !> evaluation, and the halo's share goes to the halo exchange's timer.
-    !> With stage (an RK4 stage of a model with 4 state values a node), the stage's update is
-    !> fused into the pass over the nodes instead, which without stiffness damping follows the
-    !> cells band by band (model%bands) (iem_node_pass; acc then holds only the
+    !> With stage (an RK4 stage of a model with 4 state values a node, or 6 with capped
+    !> damping's filtered velocities), the stage's update is fused into the pass over the
+    !> nodes instead, which without stiffness damping follows the cells band by band
+    !> (model%bands) (iem_node_pass, iem_node_pass_filtered; acc then holds only the
     !> imposed accelerations of the prescribed dofs): stage 1 at y writes ynew and the next
     !> stage state ynext; stages 2 and 3 at the stage state y add to ynew and turn y into the
     !> next stage state from y0, the state at the start of the step; stage 4 adds to ynew and

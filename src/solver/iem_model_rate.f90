@@ -5,6 +5,7 @@ submodule (iem_model) iem_model_rate
   use mpi_f08, only: MPI_Wait, MPI_Test, MPI_STATUS_IGNORE, MPI_F_sync_reg
   use iem_timers, only: timer_switch, t_force, t_halo, t_update
   use iem_node_pass, only: accelerations_in_place, mass_damping_powers
+  use iem_node_pass_filtered, only: rk4_filtered_first, rk4_filtered_mid, rk4_filtered_last
   use iem_cell_table, only: cell_table_t
   implicit none
 
@@ -33,11 +34,12 @@ contains
     call model_damping_arrays(this, lat)
     ! the cells' forces are summed into model%f, or (sum_in_acc) into acc itself; an RK4
     ! stage without stiffness damping goes band by band (bands%active; with halo nodes, when
-    ! the halo is exchanged here)
+    ! the halo is exchanged here; 4 values a node: capped damping's 6, even with a ratio of 0,
+    ! go in one pass)
     if (this%sum_in_acc) then
       call evaluate(acc)
     else if (present(stage) .and. this%bands%active .and. this%beta == 0.0_wp .and. &
-             (present(halo) .or. .not. this%split%active)) then
+             size(y, 1) == 4 .and. (present(halo) .or. .not. this%split%active)) then
       call evaluate_bands(this%f)
     else
       call evaluate(this%f)
@@ -262,16 +264,33 @@ contains
       call timer_switch(t_force, t_update, timed)
       if (present(stage)) then
         if (present(first_bad)) first_bad = 0
-        associate(n_o => lat%n_owned)
-          select case (stage%stage)
-          case (1)
-            call rk4_first_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y, fs, ynew, &
-                                ynext)
-          case (2, 3)
-            call rk4_mid_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y0, fs, ynew, y)
-          case default
-            call rk4_last_pass(n_o, this%alpha, this%mass, stage%wdt, y, fs, ynew, stage%total)
-          end select
+        associate(n_o => lat%n_owned, wc => this%omega_cap)
+          if (size(y, 1) == 6) then
+            ! capped damping's filtered velocities: their rates in the same pass
+            select case (stage%stage)
+            case (1)
+              call rk4_filtered_first(n_o, this%alpha, wc, this%mass, stage%wdt, stage%h, y, &
+                                      fs, ynew, ynext)
+            case (2, 3)
+              call rk4_filtered_mid(n_o, this%alpha, wc, this%mass, stage%wdt, stage%h, y0, &
+                                    fs, ynew, y)
+            case default
+              call rk4_filtered_last(n_o, this%alpha, wc, this%mass, stage%wdt, y, fs, ynew, &
+                                     stage%total)
+            end select
+          else
+            select case (stage%stage)
+            case (1)
+              call rk4_first_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y, fs, &
+                                  ynew, ynext)
+            case (2, 3)
+              call rk4_mid_pass(n_o, this%alpha, this%mass, stage%wdt, stage%h, y0, fs, ynew, &
+                                y)
+            case default
+              call rk4_last_pass(n_o, this%alpha, this%mass, stage%wdt, y, fs, ynew, &
+                                 stage%total)
+            end select
+          end if
         end associate
       else
         if (this%sum_in_acc) then
@@ -308,8 +327,10 @@ contains
           acc(comp, this%bc_node(n)) = this%bc_velocity(comp, b)*tf_rate(this%bc_tf(b), t)
         end if
       end do
-      ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap
-      if (this%omega_cap > 0.0_wp) call filter_rates(lat%n_owned, this%omega_cap, y, acc)
+      ! capped stiffness damping: the filtered velocity follows v at the rate omega_cap (an
+      ! RK4 stage's pass has used them already)
+      if (this%omega_cap > 0.0_wp .and. .not. present(stage)) &
+        call filter_rates(lat%n_owned, this%omega_cap, y, acc)
     end subroutine imposed_rates
 
     !> p_ext: the loads' powers, then the reactions' that enter it (model_external_power).

@@ -1,9 +1,10 @@
 !> The pass over a rank's owned nodes that follows the cell forces: the accelerations
 !> a = -(f + alpha m v)/m from the summed forces f (external loads already folded in as -f_ext),
 !> clearing f for the next evaluation, and for RK4 the stage's update fused into the same
-!> pass, so that no stage reads or writes the rates as a separate array (docs/numerics.md,
-!> "RK4's passes"). The classical scheme: k_s = (v_s, a_s), y_new = y + dt sum w_s k_s, stage
-!> states y + h_s k_s, each value with the same arithmetic as separate passes would do.
+!> pass, so that no stage reads or writes the rates as a separate array (docs/architecture.md,
+!> "The node passes"; 6 values a node: iem_node_pass_filtered). The classical scheme:
+!> k_s = (v_s, a_s), y_new = y + dt sum w_s k_s, stage states y + h_s k_s, each value with
+!> the same arithmetic as separate passes would do.
 !> Where iem_node_pass_simd.c is built with AVX2 and FMA, the RK4 passes and Verlet's fused
 !> kicks on states of 4 values a node run there, a node a vector, bit for bit as the loops
 !> here (which run otherwise).

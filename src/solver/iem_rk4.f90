@@ -15,6 +15,7 @@ module iem_rk4
   use iem_state, only: state_t, state_rate
   use iem_timers, only: timer_start, timer_stop, t_force, t_update
   use iem_node_pass, only: rk4_stage_t
+  use iem_node_pass_filtered, only: rk4_filtered_update
   implicit none
   private
   public :: rk4_t, rk4_finish_step
@@ -28,7 +29,8 @@ module iem_rk4
   !> new state; the ranks agree on it with a non-blocking reduction that completes behind the
   !> next step's halo exchange (settle), before anything overwrites the state it replaced.
   type, extends(integrator_t) :: rk4_t
-    !> Whether the stage updates are fused into the evaluations' passes (4 values a node).
+    !> Whether the stage updates are fused into the evaluations' passes (4 values a node, or
+    !> 6 with capped damping).
     logical :: fused = .false.
     !> Whether stage 1 of the next step goes with its stages 2-4 as one wavefront (the model's
     !> rate_stages): set by a step that nothing follows but the next one (next_plain), where
@@ -80,8 +82,9 @@ contains
   end function rk4_true
 
   !> Stage 1 at every step: the rates at y(t), which also serve the step's sample; with 4
-  !> state values a node the stage's update (st%ynew and the stage state st%ys for dt) is
-  !> fused into the evaluation's pass over the nodes, else the rates go to st%acc.
+  !> state values a node (6 with capped damping) the stage's update (st%ynew and the stage
+  !> state st%ys for dt) is fused into the evaluation's pass over the nodes, else the rates
+  !> go to st%acc.
   subroutine rk4_prepare(this, model, lat, halo, st, t, dt, first)
     class(rk4_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
@@ -92,7 +95,7 @@ contains
     logical, intent(in) :: first
     type(rk4_stage_t) :: stage
     logical :: ok
-    this%fused = size(st%y, 1) == 4
+    this%fused = size(st%y, 1) == 4 .or. size(st%y, 1) == 6
     if (this%deferred .or. .not. this%fused) then
       call this%settle(st, ok)
       if (.not. ok .or. this%deferred) return
@@ -348,6 +351,9 @@ contains
             ys(4, l) = y(4, l) + h*a2
           end do
         end if
+      else if (ns == 6) then
+        ! capped damping's filtered velocities: the operations of the fused passes
+        call rk4_filtered_update(n, merge(1, 0, first), 0, wdt, h, y, yk, acc, ynew, ys, total)
       else
         do l = 1, n
           if (first) then
@@ -373,6 +379,11 @@ contains
       real(wp) :: part(8)
       integer :: l, l0, j, ns
       ns = size(ys, 1)
+      if (ns == 6) then
+        ! capped damping's filtered velocities: the operations of the fused pass
+        call rk4_filtered_update(n, 0, 1, wdt, 0.0_wp, ys, ys, acc, ynew, ynew, total)
+        return
+      end if
       do l = 1, n
         ynew(1, l) = ynew(1, l) + wdt*ys(3, l)
         ynew(2, l) = ynew(2, l) + wdt*ys(4, l)
