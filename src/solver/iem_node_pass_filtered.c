@@ -24,30 +24,32 @@ static inline void rates(int l, double alpha, double omega, const double *mass, 
   f[2 * l + 1] = 0.0;
 }
 
+/* One stage's pass: the rates k at the states in state (their forces f cleared),
+ * ynew = sum + wdt k and ys = base + h k (ys may be state, ynew may be sum: each node's values
+ * are read before they are written). */
+static void stage_pass(int n, double alpha, double omega, const double *mass, double wdt,
+                       double h, const double *state, const double *sum, const double *base,
+                       double *f, double *ynew, double *ys) {
+  for (int l = 0; l < n; l++) {
+    double k[6];
+    rates(l, alpha, omega, mass, state, f, k);
+    for (int j = 0; j < 6; j++) {
+      ynew[6 * l + j] = fma(wdt, k[j], sum[6 * l + j]);
+      ys[6 * l + j] = fma(h, k[j], base[6 * l + j]);
+    }
+  }
+}
+
 /* Stage 1 at the state y: ynew = y + wdt k1, ys = y + h k1. */
 void iem_rk4_filtered_first(int n, double alpha, double omega, const double *mass, double wdt,
                             double h, const double *y, double *f, double *ynew, double *ys) {
-  for (int l = 0; l < n; l++) {
-    double k[6];
-    rates(l, alpha, omega, mass, y, f, k);
-    for (int j = 0; j < 6; j++) {
-      ynew[6 * l + j] = fma(wdt, k[j], y[6 * l + j]);
-      ys[6 * l + j] = fma(h, k[j], y[6 * l + j]);
-    }
-  }
+  stage_pass(n, alpha, omega, mass, wdt, h, y, y, y, f, ynew, ys);
 }
 
 /* Stage 2 or 3 at the stage state ys: ynew = ynew + wdt k, then ys = y0 + h k. */
 void iem_rk4_filtered_mid(int n, double alpha, double omega, const double *mass, double wdt,
                           double h, const double *y0, double *f, double *ynew, double *ys) {
-  for (int l = 0; l < n; l++) {
-    double k[6];
-    rates(l, alpha, omega, mass, ys, f, k);
-    for (int j = 0; j < 6; j++) {
-      ynew[6 * l + j] = fma(wdt, k[j], ynew[6 * l + j]);
-      ys[6 * l + j] = fma(h, k[j], y0[6 * l + j]);
-    }
-  }
+  stage_pass(n, alpha, omega, mass, wdt, h, ys, ynew, y0, f, ynew, ys);
 }
 
 /* Stage 4 at the stage state ys: ynew = ynew + wdt k, with the sum of the new values in
