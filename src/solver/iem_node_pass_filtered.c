@@ -68,23 +68,41 @@ void iem_rk4_filtered_last(int n, double alpha, double omega, const double *mass
   *total = sum;
 }
 
-/* A stage's update from rates formed before it: the velocities yk(3:4) and acc (a, r), as
- * the passes above form them: ynew = (first: y, else ynew) + wdt k and, unless last,
- * ys = y + h k (ys may be yk: each node's values are read before they are written); with
- * last, the sum of the new values in total. */
-void iem_rk4_filtered_update(int n, int first, int last, double wdt, double h, const double *y,
-                             const double *yk, const double *acc, double *ynew, double *ys,
-                             double *total) {
-  double sum = 0.0;
+/* The rates k of node l from those formed before the pass: the velocities yk(3:4) and
+ * acc(4, n) (a, r). */
+static inline void rates_of(int l, const double *yk, const double *acc, double k[6]) {
+  k[0] = yk[6 * l + 2];
+  k[1] = yk[6 * l + 3];
+  for (int j = 0; j < 4; j++) k[2 + j] = acc[4 * l + j];
+}
+
+/* A stage's update (not the last) from rates formed before it, as the passes above form it:
+ * ynew = (first: y, else ynew) + wdt k, ys = y + h k (ys may be yk: each node's values are
+ * read before they are written). */
+void iem_rk4_filtered_update(int n, int first, double wdt, double h, const double *y,
+                             const double *yk, const double *acc, double *ynew, double *ys) {
   for (int l = 0; l < n; l++) {
-    double k[6] = {yk[6 * l + 2], yk[6 * l + 3], acc[4 * l], acc[4 * l + 1], acc[4 * l + 2],
-                   acc[4 * l + 3]};
+    double k[6];
+    rates_of(l, yk, acc, k);
     for (int j = 0; j < 6; j++) {
       ynew[6 * l + j] = fma(wdt, k[j], first ? y[6 * l + j] : ynew[6 * l + j]);
-      if (last) sum += ynew[6 * l + j];
+      ys[6 * l + j] = fma(h, k[j], y[6 * l + j]);
     }
-    if (last) continue;
-    for (int j = 0; j < 6; j++) ys[6 * l + j] = fma(h, k[j], y[6 * l + j]);
+  }
+}
+
+/* The last stage's update from rates formed before it: ynew = ynew + wdt k, with the sum of
+ * the new values in total. */
+void iem_rk4_filtered_last_update(int n, double wdt, const double *ys, const double *acc,
+                                  double *ynew, double *total) {
+  double sum = 0.0;
+  for (int l = 0; l < n; l++) {
+    double k[6];
+    rates_of(l, ys, acc, k);
+    for (int j = 0; j < 6; j++) {
+      ynew[6 * l + j] = fma(wdt, k[j], ynew[6 * l + j]);
+      sum += ynew[6 * l + j];
+    }
   }
   *total = sum;
 }

@@ -13,6 +13,7 @@ module iem_node_pass_filtered
   implicit none
   private
   public :: rk4_filtered_first, rk4_filtered_mid, rk4_filtered_last, rk4_filtered_update
+  public :: rk4_filtered_last_update
 
   interface
     !> Stage 1 at the state y(6, n): ynew = y + wdt k1 and the next stage state
@@ -46,17 +47,27 @@ module iem_node_pass_filtered
       real(c_double), intent(inout) :: f(*), ynew(*)
       real(c_double), intent(out) :: total
     end subroutine rk4_filtered_last
-    !> A stage's update from its rates formed before (velocities yk(3:4, n), rates acc(4, n):
-    !> accelerations and the filter's): ynew = (first /= 0: y, else ynew) + wdt k and, unless
-    !> last /= 0, ys = y + h k (ys may be yk); with last, the sum of the new values in total.
-    subroutine rk4_filtered_update(n, first, last, wdt, h, y, yk, acc, ynew, ys, total) &
+    !> A stage's update but the last from its rates formed before (velocities yk(3:4, n),
+    !> rates acc(4, n): accelerations and the filter's): ynew = (first /= 0: y, else ynew)
+    !> + wdt k and ys = y + h k (ys may be yk).
+    subroutine rk4_filtered_update(n, first, wdt, h, y, yk, acc, ynew, ys) &
         bind(c, name='iem_rk4_filtered_update')
       import :: c_int, c_double
-      integer(c_int), value :: n, first, last
+      integer(c_int), value :: n, first
       real(c_double), value :: wdt, h
       real(c_double), intent(in) :: y(*), yk(*), acc(*)
       real(c_double), intent(inout) :: ynew(*), ys(*)
-      real(c_double), intent(out) :: total
     end subroutine rk4_filtered_update
+    !> The last stage's update from its rates formed before: ynew = ynew + wdt k, with the
+    !> sum of the new values in total (which only says whether they are all finite).
+    pure subroutine rk4_filtered_last_update(n, wdt, ys, acc, ynew, total) &
+        bind(c, name='iem_rk4_filtered_last_update')
+      import :: c_int, c_double
+      integer(c_int), value :: n
+      real(c_double), value :: wdt
+      real(c_double), intent(in) :: ys(*), acc(*)
+      real(c_double), intent(inout) :: ynew(*)
+      real(c_double), intent(out) :: total
+    end subroutine rk4_filtered_last_update
   end interface
 end module iem_node_pass_filtered

@@ -15,7 +15,7 @@ module iem_rk4
   use iem_state, only: state_t, state_rate
   use iem_timers, only: timer_start, timer_stop, t_force, t_update
   use iem_node_pass, only: rk4_stage_t
-  use iem_node_pass_filtered, only: rk4_filtered_update
+  use iem_node_pass_filtered, only: rk4_filtered_update, rk4_filtered_last_update
   implicit none
   private
   public :: rk4_t, rk4_finish_step
@@ -351,21 +351,9 @@ contains
             ys(4, l) = y(4, l) + h*a2
           end do
         end if
-      else if (ns == 6) then
-        ! capped damping's filtered velocities: the operations of the fused passes
-        call rk4_filtered_update(n, merge(1, 0, first), 0, wdt, h, y, yk, acc, ynew, ys, total)
       else
-        do l = 1, n
-          if (first) then
-            ynew(1:2, l) = y(1:2, l) + wdt*yk(3:4, l)
-            ynew(3:ns, l) = y(3:ns, l) + wdt*acc(:, l)
-          else
-            ynew(1:2, l) = ynew(1:2, l) + wdt*yk(3:4, l)
-            ynew(3:ns, l) = ynew(3:ns, l) + wdt*acc(:, l)
-          end if
-          ys(1:2, l) = y(1:2, l) + h*yk(3:4, l)
-          ys(3:ns, l) = y(3:ns, l) + h*acc(:, l)
-        end do
+        ! capped damping's filtered velocities (6 values): the operations of the fused passes
+        call rk4_filtered_update(n, merge(1, 0, first), wdt, h, y, yk, acc, ynew, ys)
       end if
     end subroutine stage_update
 
@@ -381,7 +369,7 @@ contains
       ns = size(ys, 1)
       if (ns == 6) then
         ! capped damping's filtered velocities: the operations of the fused pass
-        call rk4_filtered_update(n, 0, 1, wdt, 0.0_wp, ys, ys, acc, ynew, ynew, total)
+        call rk4_filtered_last_update(n, wdt, ys, acc, ynew, total)
         return
       end if
       do l = 1, n
