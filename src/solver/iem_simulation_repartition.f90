@@ -72,9 +72,10 @@ contains
     this%model%w_ext_acc = w_ext
     this%model%w_damp_acc = w_damp
     this%model%en_sum = en
-    ! copy the fields back into the new model and state
+    ! copy the fields back into the new model and state (the prescribed velocities with them,
+    ! as the step before set them: prescribing them again at k dt, not that step's t + dt,
+    ! could move them by a rounding of t)
     call state_from_registry(this, reg)
-    call this%model%prescribe(this%st%y, real(k, wp)*this%dt)
     ! the halo columns of y are refreshed by the next force evaluation's exchange; Verlet's
     ! step uses only owned values before it
     do k2 = 1, size(this%probe_gid)

@@ -9,7 +9,8 @@ module iem_kernel_rows
   use iem_kernel_simd, only: kernel_simd, c_gather_row4, c_scatter_rows
   implicit none
   private
-  public :: gather_block, gather_row, gather_rows, add_node_forces, add_routed_forces
+  public :: gather_block, gather_row, gather_rows, gather_filtered, add_node_forces
+  public :: add_routed_forces
   public :: add_block_forces, set_aside
 
 contains
@@ -49,6 +50,39 @@ contains
       end do
     end subroutine block_row
   end subroutine gather_row
+
+  !> A chunk's rows of a state of 6 values a node (capped damping), the nodes b0..b0+m
+  !> (bottom) and t0..t0+m (top) read once: the displacements (rows 1, 2) into ub (only with
+  !> bottom) and ut, the filtered velocities (5, 6) into wb, wt, the velocities (3, 4) into
+  !> vb, vt (each (0:m, 2)): gather_row's and gather_block's copies in one pass.
+  pure subroutine gather_filtered(y, m, b0, t0, bottom, ub, ut, wb, wt, vb, vt)
+    real(wp), intent(in), contiguous :: y(:, :)
+    integer, intent(in) :: m, b0, t0
+    logical, intent(in) :: bottom
+    real(wp), intent(inout) :: ub(0:chunk, 2), ut(0:chunk, 2), wb(0:chunk, 2), wt(0:chunk, 2)
+    real(wp), intent(inout) :: vb(0:chunk, 2), vt(0:chunk, 2)
+    integer :: i
+    if (bottom) then
+      do i = 0, m
+        ub(i, 1) = y(1, b0 + i)
+        ub(i, 2) = y(2, b0 + i)
+      end do
+    end if
+    do i = 0, m
+      vb(i, 1) = y(3, b0 + i)
+      vb(i, 2) = y(4, b0 + i)
+      wb(i, 1) = y(5, b0 + i)
+      wb(i, 2) = y(6, b0 + i)
+    end do
+    do i = 0, m
+      ut(i, 1) = y(1, t0 + i)
+      ut(i, 2) = y(2, t0 + i)
+      vt(i, 1) = y(3, t0 + i)
+      vt(i, 2) = y(4, t0 + i)
+      wt(i, 1) = y(5, t0 + i)
+      wt(i, 2) = y(6, t0 + i)
+    end do
+  end subroutine gather_filtered
 
   !> Rows r, r+1 of y at the chunk's bottom and top nodes bn(0:m), tn(0:m) into wb, wt(0:m, 2).
   pure subroutine gather_rows(y, r, m, bn, tn, wb, wt)
