@@ -1,5 +1,6 @@
 !> Classical explicit 4th-order Runge-Kutta step of the first-order system (u, v), with a halo
-!> exchange before every stage's force evaluation; stage 1 is iem_state's state_rate. rk4_t
+!> exchange before every stage's force evaluation; stage 1 is the rates iem_state's state_rate
+!> forms (rk4_finish_step's caller), which rk4_t's prepare fuses with its update. rk4_t
 !> puts it behind iem_integrator's interface: it rejects a step whose new state is not finite.
 module iem_rk4
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
@@ -12,7 +13,7 @@ module iem_rk4
   use iem_local_lattice, only: local_lattice_t
   use iem_halo, only: halo_t
   use iem_model, only: model_t
-  use iem_state, only: state_t, state_rate
+  use iem_state, only: state_t
   use iem_timers, only: timer_start, timer_stop, t_force, t_update
   use iem_node_pass, only: rk4_stage_t
   use iem_node_pass_filtered, only: rk4_filtered_update, rk4_filtered_last_update
@@ -29,9 +30,6 @@ module iem_rk4
   !> new state; the ranks agree on it with a non-blocking reduction that completes behind the
   !> next step's halo exchange (settle), before anything overwrites the state it replaced.
   type, extends(integrator_t) :: rk4_t
-    !> Whether the stage updates are fused into the evaluations' passes (4 values a node, or
-    !> 6 with capped damping).
-    logical :: fused = .false.
     !> Whether stage 1 of the next step goes with its stages 2-4 as one wavefront (the model's
     !> rate_stages): set by a step that nothing follows but the next one (next_plain), where
     !> the wavefront applies; prepare then only settles the last step.
@@ -81,10 +79,10 @@ contains
     rk4_true = .true.
   end function rk4_true
 
-  !> Stage 1 at every step: the rates at y(t), which also serve the step's sample; with 4
-  !> state values a node (6 with capped damping) the stage's update (st%ynew and the stage
-  !> state st%ys for dt) is fused into the evaluation's pass over the nodes, else the rates
-  !> go to st%acc.
+  !> Stage 1 at every step: the rates at y(t), which also serve the step's sample, with the
+  !> stage's update (st%ynew and the stage state st%ys for dt) fused into the evaluation's
+  !> pass over the nodes (4 state values a node, or 6 with capped damping); or, with the
+  !> stages deferred to the step's wavefront, only the last step's agreement settled.
   subroutine rk4_prepare(this, model, lat, halo, st, t, dt, first)
     class(rk4_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
@@ -95,11 +93,8 @@ contains
     logical, intent(in) :: first
     type(rk4_stage_t) :: stage
     logical :: ok
-    this%fused = size(st%y, 1) == 4 .or. size(st%y, 1) == 6
-    if (this%deferred .or. .not. this%fused) then
+    if (this%deferred) then
       call this%settle(st, ok)
-      if (.not. ok .or. this%deferred) return
-      call state_rate(model, lat, halo, st, t)
       return
     end if
     stage%stage = 1
@@ -131,10 +126,10 @@ contains
     real(wp), intent(in) :: t, dt
     real(wp), intent(inout) :: w_ext, w_damp
     logical, intent(out) :: accepted
-    call rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%mine, this%fused, &
+    call rk4_finish_step(model, lat, halo, st, t, dt, w_ext, w_damp, this%mine, .true., &
                          this%deferred)
     this%deferred = .false.
-    if (this%fused .and. this%next_plain) this%deferred = model%stages_fit(lat, size(st%y, 1))
+    if (this%next_plain) this%deferred = model%stages_fit(lat, size(st%y, 1))
     this%swapped = this%mine
     call MPI_Iallreduce(this%mine, this%all, 1, MPI_LOGICAL, MPI_LAND, this%comm, this%req)
     this%pending = .true.
