@@ -219,7 +219,8 @@ contains
         do j = 1, 3
           if (j /= i) q = q*(x(i) - x(j))
         end do
-        if (abs(q) > 0.0_wp) x(i) = x(i) - p/q
+        ! (q /= 0 without the modulus: the same test for finite q, a hypot less a root)
+        if (real(q) /= 0.0_wp .or. aimag(q) /= 0.0_wp) x(i) = x(i) - p/q
       end do
       ! (the same bits, a zero's sign too: a sweep is a function of the bits it starts from)
       if (same_bits(x, x1)) exit
@@ -232,10 +233,16 @@ contains
       x1 = x
     end do
   contains
-    !> Whether a and b hold the same bits.
+    !> Whether a and b hold the same bits (value by value: no temporary arrays).
     pure logical function same_bits(a, b)
       complex(wp), intent(in) :: a(3), b(3)
-      same_bits = all(transfer(a, 0_i8, 6) == transfer(b, 0_i8, 6))
+      integer :: k
+      same_bits = .false.
+      do k = 1, 3
+        if (transfer(real(a(k)), 0_i8) /= transfer(real(b(k)), 0_i8)) return
+        if (transfer(aimag(a(k)), 0_i8) /= transfer(aimag(b(k)), 0_i8)) return
+      end do
+      same_bits = .true.
     end function same_bits
   end function cubic_roots
 
