@@ -51,6 +51,15 @@ module iem_model
     !> Capped stiffness damping: the stiffness damping acts on w, the velocity low-pass
     !> filtered at omega_cap (rad/s), carried as state rows 5:6; 0 when not used.
     real(wp) :: omega_cap = 0.0_wp
+    !> Velocity Verlet's step while it evaluates the forces at its end (0 otherwise): the powers
+    !> of the loads, of the reactions and of capped damping are then those of the forces' mean
+    !> over the step, as its kicks apply them (the start's and the end's, half a step each
+    !> around the half-step velocity; docs/model.md).
+    real(wp) :: mean_dt = 0.0_wp
+    !> With mean_dt, the loads' mean over the step at each loaded slot, where it differs from
+    !> fext (fmean_on; allocated the first time it does).
+    real(wp), allocatable :: fmean(:, :)
+    logical :: fmean_on = .false.
     !> State values per node: 4 (u, v), or 6 (u, v, w) with capped damping.
     integer :: n_state = 4
     !> Nonlinear (Masing) springs: their laws and history; not allocated for elastic runs.
@@ -242,7 +251,9 @@ module iem_model
 
     !> Prescribed dof q at an evaluated state y at time t, from its node's cell forces in fs
     !> (before the loads fext are taken off): its cell force f_bc, with keep its reaction r_bc,
-    !> and its reaction's power pr (on: whether it enters p_ext: not released, moving).
+    !> and its reaction's power pr (on: whether it enters p_ext: not released, moving); with
+    !> mean_dt, that of the reaction's mean over the step (r_bc before it, the last accepted
+    !> state's, is the start's).
     module subroutine model_reaction_terms(this, q, fs, y, t, fext, keep, pr, on)
       class(model_t), intent(inout) :: this
       integer, intent(in) :: q
@@ -371,7 +382,8 @@ module iem_model
       type(exact_sum_t), intent(inout) :: sums(:)
     end subroutine model_reaction_sums
     !> The loads fext at time t (their scales in load_scale): rebuilt only when a time
-    !> function has changed.
+    !> function has changed; with mean_dt, also their mean over the step to t (fmean), where
+    !> it differs.
     module subroutine model_set_loads(this, t)
       class(model_t), intent(inout) :: this
       real(wp), intent(in) :: t

@@ -132,7 +132,7 @@ contains
   end procedure model_reaction_sums
   !> Documented at its interface in iem_model.f90.
   module procedure model_set_loads
-    real(wp) :: r
+    real(wp) :: r, ms(size(this%load_tf))
     integer :: ld, n, s
     logical :: changed
     changed = .false.
@@ -141,11 +141,29 @@ contains
       if (r /= this%load_scale(ld)) changed = .true.
       this%load_scale(ld) = r
     end do
-    if (.not. changed) return
-    this%fext = 0.0_wp
+    if (changed) then
+      this%fext = 0.0_wp
+      do n = 1, size(this%load_node)
+        s = this%load_slot(n)
+        this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+      end do
+    end if
+    ! velocity Verlet's step: the loads' mean over it, for their powers, where it differs
+    this%fmean_on = .false.
+    if (this%mean_dt <= 0.0_wp) return
+    do ld = 1, size(this%load_tf)
+      ms(ld) = 0.5_wp*(tf_value(this%load_tf(ld), t - this%mean_dt) + this%load_scale(ld))
+      if (ms(ld) /= this%load_scale(ld)) this%fmean_on = .true.
+    end do
+    if (.not. this%fmean_on) return
+    if (allocated(this%fmean)) then
+      if (size(this%fmean, 2) /= size(this%fext, 2)) deallocate(this%fmean)
+    end if
+    if (.not. allocated(this%fmean)) allocate(this%fmean(2, size(this%fext, 2)))
+    this%fmean = 0.0_wp
     do n = 1, size(this%load_node)
       s = this%load_slot(n)
-      this%fext(:, s) = this%fext(:, s) + this%load_force(:, n)*this%load_scale(this%load_id(n))
+      this%fmean(:, s) = this%fmean(:, s) + this%load_force(:, n)*ms(this%load_id(n))
     end do
   end procedure model_set_loads
 
@@ -182,7 +200,11 @@ contains
     do while (js <= size(this%ext_node))
       l = this%ext_node(js)
       if (l > hi) exit
-      this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
+      if (this%fmean_on) then
+        this%pe_slot(js) = this%fmean(1, js)*y(3, l) + this%fmean(2, js)*y(4, l)
+      else
+        this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
+      end if
       fs(:, l) = fs(:, l) - this%fext(:, js)
       js = js + 1
     end do

@@ -343,6 +343,9 @@ contains
     end if
     call timer_stop(t_update)
     call timer_start(t_force)
+    ! the powers of the loads, reactions and capped damping: those of the forces' mean over
+    ! the step, which the kicks apply half a step each around v(t + dt/2) (docs/model.md)
+    model%mean_dt = dt
     ! the end of the step is accepted: nonlinear springs commit their history to it; with 4
     ! values a node the kick v(t + dt) is fused into the evaluation's pass over the nodes
     if (two) then
@@ -362,9 +365,10 @@ contains
       call model%rate(lat, st%y, t + dt, st%acc, p_ext, p_damp, commit=.true., halo=halo, &
                       fold=dt)
     end if
+    model%mean_dt = 0.0_wp
     call timer_stop(t_force)
     call timer_start(t_update)
-    ! the powers are those of the half-step velocity: exact work of constant forces
+    ! the powers of the step's mean forces at the half-step velocity
     w_ext = w_ext + dt*p_ext
     w_damp = w_damp + dt*p_damp
     ! (each evaluation above folded its nodes' mass damping work with the weight dt)

@@ -230,8 +230,9 @@ contains
   !> The stiffness damping of a chunk's elastic cells (law coefficients lc): beta times the
   !> cell law of the strain and shear rates of the velocities bw, tw as edge stresses hd and
   !> corner stresses ud, and the damping power pw = their product with the rates of the
-  !> velocities bp, tp (the same as bw, tw unless the damping acts on filtered velocities).
-  pure subroutine damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bp, tp, hd, ud, pw)
+  !> velocities bp, tp (the same as bw, tw unless the damping acts on filtered velocities);
+  !> with mid, the power of the stresses of w - mid (p - w) instead (w: bw, tw; p: bp, tp).
+  pure subroutine damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bp, tp, hd, ud, pw, mid)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     type(edge_row_t), intent(in) :: bot, top
@@ -239,7 +240,9 @@ contains
     real(wp), intent(in) :: lc(chunk, 5), beta
     real(wp), intent(in) :: bw(0:chunk, 2), tw(0:chunk, 2), bp(0:chunk, 2), tp(0:chunk, 2)
     real(wp), intent(out) :: hd(chunk, 4), ud(chunk, 4), pw(chunk)
-    real(wp) :: d(chunk, 4), r(chunk, 4), dp(chunk, 4), rp(chunk, 4)
+    !> The power's damping velocity w - mid (p - w) (default 0: w, as the stresses')
+    real(wp), intent(in), optional :: mid
+    real(wp) :: d(chunk, 4), r(chunk, 4), dp(chunk, 4), rp(chunk, 4), mu
     integer :: c
     call strain_rates(k, m, bot, top, v, bw, tw, d, r)
     call strain_rates(k, m, bot, top, v, bp, tp, dp, rp)
@@ -254,6 +257,21 @@ contains
       ud(c, 4) = beta*(lc(c, 4)*r(c, 4) + lc(c, 5)*(r(c, 2) - r(c, 3) - r(c, 1)))
       pw(c) = hd(c, 1)*dp(c, 1) + hd(c, 2)*dp(c, 2) + hd(c, 3)*dp(c, 3) + hd(c, 4)*dp(c, 4) + &
               ud(c, 1)*rp(c, 1) + ud(c, 2)*rp(c, 2) + ud(c, 3)*rp(c, 3) + ud(c, 4)*rp(c, 4)
+    end do
+    mu = 0.0_wp
+    if (present(mid)) mu = mid
+    if (mu == 0.0_wp) return
+    ! the power of the damping stresses of w - mu (p - w): the stresses are linear in the
+    ! rates, so it is (1 + mu) times that of w's less mu times beta p's quadratic form
+    do c = 1, m
+      pw(c) = (1.0_wp + mu)*pw(c) - mu*beta*( &
+              lc(c, 1)*(dp(c, 1)**2 + dp(c, 2)**2 + dp(c, 3)**2 + dp(c, 4)**2) + &
+              2.0_wp*lc(c, 2)*(dp(c, 1)*dp(c, 2) + dp(c, 2)*dp(c, 3) + dp(c, 3)*dp(c, 4) + &
+                               dp(c, 4)*dp(c, 1)) + &
+              2.0_wp*lc(c, 3)*(dp(c, 1)*dp(c, 3) + dp(c, 2)*dp(c, 4)) + &
+              lc(c, 4)*(rp(c, 1)**2 + rp(c, 2)**2 + rp(c, 3)**2 + rp(c, 4)**2) + &
+              2.0_wp*lc(c, 5)*(rp(c, 1)*rp(c, 3) + rp(c, 2)*rp(c, 4) - rp(c, 1)*rp(c, 2) - &
+                               rp(c, 2)*rp(c, 3) - rp(c, 3)*rp(c, 4) - rp(c, 4)*rp(c, 1)))
     end do
   end subroutine damping_stresses
 
@@ -321,7 +339,7 @@ contains
   !> corner).
   pure subroutine chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, &
                                 fy, en, pw, dmg, n_dmg, nl, c_first, accept, ks, mat, fr, time, &
-                                energies)
+                                energies, mid)
     type(cell_constants_t), intent(in) :: k
     integer, intent(in) :: m
     logical, intent(in) :: damped, filtered
@@ -344,6 +362,8 @@ contains
     real(wp), intent(in), optional :: time
     !> Whether the nonlinear springs' energies en are wanted (default: yes; else en = 0).
     logical, intent(in), optional :: energies
+    !> With filtered damping: the power's damping velocity w - mid (p - w) (default 0: w).
+    real(wp), intent(in), optional :: mid
     ! per cell: unit edge vectors e, shear gradients a (d s/d a) and b (d s/d b), strains ep
     ! and shear measures s, generalised stresses g (edges) and t (corners), and the rates
     real(wp) :: ex(chunk, 4), ey(chunk, 4), ax(chunk, 4), ay(chunk, 4)
@@ -351,8 +371,9 @@ contains
     real(wp) :: d(chunk, 4), r(chunk, 4), gd(chunk, 4), td(chunk, 4)
     real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
     real(wp) :: s1, s2, s3, s4, ilx, ily
-    real(wp) :: fe(chunk, 4), fs(chunk, 4)
+    real(wp) :: fe(chunk, 4), fs(chunk, 4), dp(chunk, 4), rp(chunk, 4), gm(chunk, 4), tm(chunk, 4)
     integer :: c
+    logical :: mid_on
 
     ilx = k%il0(1)
     ily = k%il0(2)
@@ -455,7 +476,15 @@ contains
       end if
       ! the damping power is f_damp . v: with filtered damping velocities, the strain rates of
       ! the velocities themselves are needed too
-      if (filtered) call strain_rates(bp, tp, d, r)
+      mid_on = .false.
+      if (filtered) then
+        call strain_rates(bp, tp, dp, rp)
+        if (present(mid)) mid_on = mid /= 0.0_wp
+        ! (velocity Verlet) the power takes the damping stresses of w - mid (p - w)
+        if (mid_on) call mid_stresses(mid, gm, tm)
+        d(1:m, :) = dp(1:m, :)
+        r(1:m, :) = rp(1:m, :)
+      end if
       do c = 1, m
         pw(c) = beta*(gd(c, 1)*d(c, 1) + gd(c, 2)*d(c, 2) + gd(c, 3)*d(c, 3) + &
                       gd(c, 4)*d(c, 4) + td(c, 1)*r(c, 1) + td(c, 2)*r(c, 2) + &
@@ -463,6 +492,13 @@ contains
         g(c, :) = g(c, :) + beta*gd(c, :)
         t(c, :) = t(c, :) + beta*td(c, :)
       end do
+      if (mid_on) then
+        do c = 1, m
+          pw(c) = beta*(gm(c, 1)*d(c, 1) + gm(c, 2)*d(c, 2) + gm(c, 3)*d(c, 3) + &
+                        gm(c, 4)*d(c, 4) + tm(c, 1)*r(c, 1) + tm(c, 2)*r(c, 2) + &
+                        tm(c, 3)*r(c, 3) + tm(c, 4)*r(c, 4))
+        end do
+      end if
     end if
     do c = 1, m
       ! edge forces per unit reference length along the unit vectors: corner q+1 gets
@@ -489,6 +525,31 @@ contains
                  + t(c, 3)*ay(c, 3) + t(c, 1)*by(c, 1)
     end do
   contains
+
+    !> The damping stresses gm, tm of the rates d - mu (dp - d), r - mu (rp - r) (damaged
+    !> cells: their damaged law).
+    pure subroutine mid_stresses(mu, gm, tm)
+      real(wp), intent(in) :: mu
+      real(wp), intent(out) :: gm(chunk, 4), tm(chunk, 4)
+      real(wp) :: dm(chunk, 4), rm(chunk, 4)
+      integer :: i
+      dm(1:m, :) = d(1:m, :) - mu*(dp(1:m, :) - d(1:m, :))
+      rm(1:m, :) = r(1:m, :) - mu*(rp(1:m, :) - r(1:m, :))
+      if (present(ks)) then
+        call cell_law_mixed(ks, mat, m, dm, rm, gm, tm)
+      else
+        call cell_law(k, m, dm, rm, gm, tm)
+      end if
+      do i = 1, m
+        if (.not. dmg(i)) cycle
+        if (present(ks)) then
+          call damaged_cell(ks(mat(i)), dm(i, :), rm(i, :), fe(i, :), fs(i, :), gm(i, :), &
+                            tm(i, :))
+        else
+          call damaged_cell(k, dm(i, :), rm(i, :), fe(i, :), fs(i, :), gm(i, :), tm(i, :))
+        end if
+      end do
+    end subroutine mid_stresses
 
     !> Edge strain rates d and shear rates r of the chunk's cells for the velocities wb, wt
     !> of the bottom and top node rows.

@@ -124,7 +124,7 @@ contains
   pure subroutine cell_forces(k, cells, n_owned, y, beta, f, energy, damp_power, damp_row, &
                               nl, commit, ks, cell_mat, cell_energy, cell_power, fr, time, &
                               add, rows, route_at, route, side, energy_terms, chunks, slots, &
-                              damaged)
+                              damaged, power_mid)
     type(cell_constants_t), intent(in) :: k
     !> The cells, in chunks, with their corners.
     type(cell_table_t), intent(in) :: cells
@@ -165,6 +165,10 @@ contains
     type(kernel_slots_t), intent(inout), optional :: slots
     !> Whether fracture has damaged some cell (a commit would change its state; fr only).
     logical, intent(out), optional :: damaged
+    !> With filtered damping: the damping power is that of the damping stresses of the
+    !> filtered velocity w - power_mid (v - w) (velocity Verlet's step middle; default 0: w,
+    !> the velocity the forces take).
+    real(wp), intent(in), optional :: power_mid
     ! the chunk's bottom and top node rows (0..m): nodes, displacements, damping velocities
     ! (w) and, with filtered damping, the velocities (p)
     integer :: bn(0:chunk), tn(0:chunk), cq(4, chunk)
@@ -193,7 +197,7 @@ contains
     logical :: damped, filtered, accept, keep_energy, keep_power, by_material, sums, consec
     logical :: keep_terms
     logical :: lean, intact, paper, shear_onset, patched
-    real(wp) :: onset(3), lc1(5), near
+    real(wp) :: onset(3), lc1(5), near, mid
     integer(i8) :: n_past
 
     nc = cells%n_cells
@@ -208,6 +212,8 @@ contains
     row = 3
     if (present(damp_row)) row = damp_row
     filtered = damped .and. row /= 3
+    mid = 0.0_wp
+    if (present(power_mid) .and. filtered) mid = power_mid
     by_material = present(ks) .and. present(cell_mat)
     bw = 0.0_wp
     tw = 0.0_wp
@@ -344,11 +350,11 @@ contains
           call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, fy, &
                              en, pw, &
                              dmg, n_dmg, nl, c0, accept, ks, cell_mat(c0:c0 + m - 1), &
-                             energies=.not. lean)
+                             energies=.not. lean, mid=mid)
         else
           call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, fx, fy, &
                              en, pw, &
-                             dmg, n_dmg, nl, c0, accept, energies=.not. lean)
+                             dmg, n_dmg, nl, c0, accept, energies=.not. lean, mid=mid)
         end if
       else
         if (by_material) then
@@ -357,7 +363,7 @@ contains
           end do
         end if
         if (filtered) then
-          call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bp, tp, hd, ud, pw)
+          call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bp, tp, hd, ud, pw, mid)
         else if (damped) then
           call damping_stresses(k, m, bot, top, v, lc, beta, bw, tw, bw, tw, hd, ud, pw)
         end if
@@ -399,12 +405,12 @@ contains
               call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, gx, &
                                  gy, &
                                  gen, gpw, dmg, n_dmg, c_first=c0, accept=accept, ks=ks, &
-                                 mat=cell_mat(c0:c0 + m - 1), fr=fr, time=time)
+                                 mat=cell_mat(c0:c0 + m - 1), fr=fr, time=time, mid=mid)
             else
               call chunk_general(k, m, bot, top, v, damped, filtered, beta, bw, tw, bp, tp, gx, &
                                  gy, &
                                  gen, gpw, dmg, n_dmg, c_first=c0, accept=accept, fr=fr, &
-                                 time=time)
+                                 time=time, mid=mid)
             end if
             if (present(damaged)) damaged = damaged .or. n_dmg > 0
             do i = 1, m
