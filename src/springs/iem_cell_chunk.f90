@@ -372,6 +372,7 @@ contains
     real(wp) :: e1x, e1y, e2x, e2y, e3x, e3y, e4x, e4y, i1, i2, i3, i4
     real(wp) :: s1, s2, s3, s4, ilx, ily
     real(wp) :: fe(chunk, 4), fs(chunk, 4), dp(chunk, 4), rp(chunk, 4), gm(chunk, 4), tm(chunk, 4)
+    real(wp) :: dm(chunk, 4), rm(chunk, 4)
     integer :: c
     logical :: mid_on
 
@@ -458,45 +459,30 @@ contains
     pw(1:m) = 0.0_wp
     if (damped) then
       call strain_rates(bw, tw, d, r)
-      if (present(ks)) then
-        call cell_law_mixed(ks, mat, m, d, r, gd, td)
-      else
-        call cell_law(k, m, d, r, gd, td)
-      end if
-      if (n_dmg > 0) then
-        do c = 1, m
-          if (.not. dmg(c)) cycle
-          if (present(ks)) then
-            call damaged_cell(ks(mat(c)), d(c, :), r(c, :), fe(c, :), fs(c, :), gd(c, :), &
-                              td(c, :))
-          else
-            call damaged_cell(k, d(c, :), r(c, :), fe(c, :), fs(c, :), gd(c, :), td(c, :))
-          end if
-        end do
-      end if
+      call damping_law(d, r, gd, td)
       ! the damping power is f_damp . v: with filtered damping velocities, the strain rates of
       ! the velocities themselves are needed too
       mid_on = .false.
       if (filtered) then
         call strain_rates(bp, tp, dp, rp)
         if (present(mid)) mid_on = mid /= 0.0_wp
-        ! (velocity Verlet) the power takes the damping stresses of w - mid (p - w)
-        if (mid_on) call mid_stresses(mid, gm, tm)
+        if (mid_on) then
+          ! (velocity Verlet) the power takes the damping stresses of w - mid (p - w)
+          dm(1:m, :) = d(1:m, :) - mid*(dp(1:m, :) - d(1:m, :))
+          rm(1:m, :) = r(1:m, :) - mid*(rp(1:m, :) - r(1:m, :))
+          call damping_law(dm, rm, gm, tm)
+        end if
         d(1:m, :) = dp(1:m, :)
         r(1:m, :) = rp(1:m, :)
       end if
       do c = 1, m
-        pw(c) = beta*(gd(c, 1)*d(c, 1) + gd(c, 2)*d(c, 2) + gd(c, 3)*d(c, 3) + &
-                      gd(c, 4)*d(c, 4) + td(c, 1)*r(c, 1) + td(c, 2)*r(c, 2) + &
-                      td(c, 3)*r(c, 3) + td(c, 4)*r(c, 4))
+        pw(c) = cell_power(c, gd, td)
         g(c, :) = g(c, :) + beta*gd(c, :)
         t(c, :) = t(c, :) + beta*td(c, :)
       end do
       if (mid_on) then
         do c = 1, m
-          pw(c) = beta*(gm(c, 1)*d(c, 1) + gm(c, 2)*d(c, 2) + gm(c, 3)*d(c, 3) + &
-                        gm(c, 4)*d(c, 4) + tm(c, 1)*r(c, 1) + tm(c, 2)*r(c, 2) + &
-                        tm(c, 3)*r(c, 3) + tm(c, 4)*r(c, 4))
+          pw(c) = cell_power(c, gm, tm)
         end do
       end if
     end if
@@ -526,30 +512,36 @@ contains
     end do
   contains
 
-    !> The damping stresses gm, tm of the rates d - mu (dp - d), r - mu (rp - r) (damaged
-    !> cells: their damaged law).
-    pure subroutine mid_stresses(mu, gm, tm)
-      real(wp), intent(in) :: mu
-      real(wp), intent(out) :: gm(chunk, 4), tm(chunk, 4)
-      real(wp) :: dm(chunk, 4), rm(chunk, 4)
+    !> The damping law's stresses gq, tq (without beta) of the chunk's edge and shear rates
+    !> dq, rq: the cells' elastic law, their damaged law where fracture has damaged them.
+    pure subroutine damping_law(dq, rq, gq, tq)
+      real(wp), intent(in) :: dq(chunk, 4), rq(chunk, 4)
+      real(wp), intent(out) :: gq(chunk, 4), tq(chunk, 4)
       integer :: i
-      dm(1:m, :) = d(1:m, :) - mu*(dp(1:m, :) - d(1:m, :))
-      rm(1:m, :) = r(1:m, :) - mu*(rp(1:m, :) - r(1:m, :))
       if (present(ks)) then
-        call cell_law_mixed(ks, mat, m, dm, rm, gm, tm)
+        call cell_law_mixed(ks, mat, m, dq, rq, gq, tq)
       else
-        call cell_law(k, m, dm, rm, gm, tm)
+        call cell_law(k, m, dq, rq, gq, tq)
       end if
+      if (n_dmg == 0) return
       do i = 1, m
         if (.not. dmg(i)) cycle
         if (present(ks)) then
-          call damaged_cell(ks(mat(i)), dm(i, :), rm(i, :), fe(i, :), fs(i, :), gm(i, :), &
-                            tm(i, :))
+          call damaged_cell(ks(mat(i)), dq(i, :), rq(i, :), fe(i, :), fs(i, :), gq(i, :), &
+                            tq(i, :))
         else
-          call damaged_cell(k, dm(i, :), rm(i, :), fe(i, :), fs(i, :), gm(i, :), tm(i, :))
+          call damaged_cell(k, dq(i, :), rq(i, :), fe(i, :), fs(i, :), gq(i, :), tq(i, :))
         end if
       end do
-    end subroutine mid_stresses
+    end subroutine damping_law
+
+    !> Cell i's damping power: beta times its stresses gq, tq by the rates d, r.
+    pure real(wp) function cell_power(i, gq, tq) result(p)
+      integer, intent(in) :: i
+      real(wp), intent(in) :: gq(chunk, 4), tq(chunk, 4)
+      p = beta*(gq(i, 1)*d(i, 1) + gq(i, 2)*d(i, 2) + gq(i, 3)*d(i, 3) + gq(i, 4)*d(i, 4) + &
+                tq(i, 1)*r(i, 1) + tq(i, 2)*r(i, 2) + tq(i, 3)*r(i, 3) + tq(i, 4)*r(i, 4))
+    end function cell_power
 
     !> Edge strain rates d and shear rates r of the chunk's cells for the velocities wb, wt
     !> of the bottom and top node rows.
