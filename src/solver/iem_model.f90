@@ -3,7 +3,7 @@
 module iem_model
   use mpi_f08, only: MPI_Request
   use iem_kinds, only: wp, ip, i8
-  use iem_config, only: config_t, time_function_spec_t
+  use iem_config, only: config_t
   use iem_grid, only: grid_t
   use iem_body, only: body_t
   use iem_local_lattice, only: local_lattice_t
@@ -18,7 +18,7 @@ module iem_model
   use iem_node_pass, only: rk4_stage_t, accelerations, rk4_first_pass, rk4_mid_pass, &
                            rk4_last_pass, mass_damping_powers
   use iem_nonlinear_springs, only: nonlinear_springs_t, reference_strains
-  use iem_time_function, only: tf_value, tf_rate
+  use iem_time_function, only: time_function_t, tf_value, tf_rate
   use iem_strings, only: itoa
   use iem_constants, only: pi
   use iem_stable_dt, only: capped_beta
@@ -74,13 +74,13 @@ module iem_model
     !> Prescribed degrees of freedom: owned node, component, bc index.
     integer, allocatable :: bc_node(:), bc_comp(:), bc_id(:)
     real(wp), allocatable :: bc_velocity(:, :)
-    type(time_function_spec_t), allocatable :: bc_tf(:)
+    type(time_function_t), allocatable :: bc_tf(:)
     !> Time from which each &bc no longer acts (huge: never released).
     real(wp), allocatable :: bc_release(:)
     !> Load entries: owned node, force vector at full load, load index.
     integer, allocatable :: load_node(:), load_id(:)
     real(wp), allocatable :: load_force(:, :)
-    type(time_function_spec_t), allocatable :: load_tf(:)
+    type(time_function_t), allocatable :: load_tf(:)
     real(wp), allocatable :: load_scale(:)
     !> Work array: cell forces summed per local node; all zero between evaluations (the
     !> pass that reads a node's force clears it, so no separate pass clears the array).

@@ -1,6 +1,7 @@
 !> The model of a rank built from the configuration, its body and its local lattice
 !> (model_init, documented at its interface in iem_model.f90).
 submodule (iem_model) iem_model_init
+  use iem_time_function, only: time_function
   implicit none
 
 contains
@@ -146,7 +147,7 @@ contains
     do b = 1, size(cfg%bcs)
       this%bc_velocity(:, b) = 0.0_wp
       if (cfg%bcs(b)%kind == 'velocity') this%bc_velocity(:, b) = cfg%bcs(b)%velocity
-      this%bc_tf(b) = cfg%bcs(b)%tf
+      this%bc_tf(b) = time_function(cfg%bcs(b)%tf)
       call select_nodes(cfg%bcs(b)%set, body, lat, mask)
       do l = 1, lat%n_owned
         if (.not. mask(l)) cycle
@@ -187,7 +188,7 @@ contains
     this%load_scale = huge(1.0_wp)
     n = 0
     do ld = 1, size(cfg%loads)
-      this%load_tf(ld) = cfg%loads(ld)%tf
+      this%load_tf(ld) = time_function(cfg%loads(ld)%tf)
       call select_nodes(cfg%loads(ld)%set, body, lat, mask, weight)
       do l = 1, lat%n_owned
         if (.not. mask(l)) cycle
