@@ -3,7 +3,7 @@
 !> node and cell records are those of a field registry (iem_fields): a node's record is its
 !> node fields' values in registration order, a cell's its cell fields', so what a checkpoint
 !> holds is what the caller registered, and the file records that layout.
-!> The format (version 4: header, energy slots, node records, cell records, checksum) and
+!> The format (version 6: header, energy slots, node records, cell records, checksum) and
 !> the reader's checks of a file's header and checksum are iem_checkpoint_header's, whose
 !> public names this module re-exports; this module writes and reads the records.
 !> A file is written as <path>.tmp and renamed to <path> once complete, so a crash while

@@ -3,7 +3,7 @@
 !> checks a reader makes before trusting a file (checkpoint_read_header, checkpoint_verify).
 !> Writing and reading the records is iem_checkpoint's, which re-exports this module's public
 !> names.
-!> Layout (format version 4; native byte order, doubles and 64-bit integers, 8-byte words):
+!> Layout (format version 6; native byte order, doubles and 64-bit integers, 8-byte words):
 !>   bytes 0-511: 64 integers (header_ints), bytes 512-1023: 64 reals (header_reals),
 !>   bytes 1024-8191: the record layout as text (checkpoint_layout; layout_len bytes), then
 !>   zeros;
@@ -46,7 +46,7 @@ module iem_checkpoint_header
   integer(i8), parameter :: checkpoint_magic = 4915430829614186819_i8
   !> The format this iem writes and reads (1: before the checksum; 3: records per array,
   !> before the field registry).
-  integer(i8), parameter :: checkpoint_version = 5
+  integer(i8), parameter :: checkpoint_version = 6
   !> Words of each rank's energy slot: the packed external-work and damping accumulators.
   integer, parameter, public :: energy_words = 2*exact_sum_packed_size
   !> Bytes of the header (the records start after it and the energy slots) and the number
@@ -78,6 +78,9 @@ module iem_checkpoint_header
     !> five energies (kinetic, strain, external work, damping, balance error), to recognise
     !> that output on a restart; the time of its last frame.
     real(wp) :: last_sample(7) = 0.0_wp, last_frame_time = 0.0_wp
+    !> Velocity Verlet's kicks' term at the checkpoint's step (the model's kick_term, global;
+    !> 0 with RK4), for the balance of a continued run's first sample.
+    real(wp) :: kick = 0.0_wp
   end type checkpoint_header_t
 
 contains
@@ -214,7 +217,7 @@ contains
     end if
     h%t = reals(1); h%dt = reals(2); h%e0 = reals(3); h%e_scale = reals(4)
     h%last_balance = reals(5); h%w_ext = reals(6); h%w_damp = reals(7)
-    h%last_sample = reals(8:14); h%last_frame_time = reals(15)
+    h%last_sample = reals(8:14); h%last_frame_time = reals(15); h%kick = reals(16)
     stat = 1
     if (h%version /= checkpoint_version) then
       msg = 'is an iem checkpoint of format version '//itoa(h%version)//'; this iem reads '// &
@@ -319,8 +322,8 @@ contains
     type(checkpoint_header_t), intent(in) :: h
     real(wp) :: v(n_header)
     v = 0.0_wp
-    v(1:15) = [h%t, h%dt, h%e0, h%e_scale, h%last_balance, h%w_ext, h%w_damp, h%last_sample, &
-               h%last_frame_time]
+    v(1:16) = [h%t, h%dt, h%e0, h%e_scale, h%last_balance, h%w_ext, h%w_damp, h%last_sample, &
+               h%last_frame_time, h%kick]
   end function header_reals
 
   !> Whether the header's counts are consistent (a damaged header is refused before its

@@ -124,17 +124,18 @@ contains
   pure subroutine exact_sum_add_scaled(this, x, w)
     class(exact_sum_t), intent(inout) :: this
     real(wp), intent(in) :: x(:), w
-    integer(i8) :: i, first, last, n
+    integer, parameter :: nb = 256
+    real(wp) :: buf(nb)
+    integer(i8) :: first, n
+    integer :: i, m
     n = size(x, kind=i8)
-    first = 1
-    do while (first <= n)
-      last = min(n, first + (exact_sum_renorm_interval - this%n_pending) - 1)
-      do i = first, last
-        call deposit(this, w*x(i))
+    ! the products a buffer at a time, through the array form
+    do first = 1, n, nb
+      m = int(min(int(nb, i8), n - first + 1))
+      do i = 1, m
+        buf(i) = w*x(first + i - 1)
       end do
-      this%n_pending = this%n_pending + (last - first + 1)
-      if (this%n_pending >= exact_sum_renorm_interval) call this%normalise()
-      first = last + 1
+      call this%add_array(buf(1:m))
     end do
   end subroutine exact_sum_add_scaled
 

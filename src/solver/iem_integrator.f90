@@ -55,6 +55,7 @@ module iem_integrator
     procedure(integrator_resume_i), deferred :: resume
     procedure :: settle => integrator_settle
     procedure :: rewind => integrator_rewind
+    procedure :: kick_half => integrator_kick_half
   end type integrator_t
 
   abstract interface
@@ -162,6 +163,15 @@ contains
     type(state_t), intent(inout) :: st
     real(wp), intent(in) :: t
   end subroutine integrator_rewind
+
+  !> The half step h of the kicks around a state of a run of step dt, which the energy balance
+  !> takes the kinetic energy (1/2) m (|v|^2 - h^2 |a|^2) at (the one its steps' work
+  !> balances); here 0: the state's own kinetic energy (an integrator with kicks overrides it).
+  pure real(wp) function integrator_kick_half(this, dt) result(h)
+    class(integrator_t), intent(in) :: this
+    real(wp), intent(in) :: dt
+    h = 0.0_wp
+  end function integrator_kick_half
 
   !> Set the communicator over which the integrator agrees on a step's acceptance.
   subroutine integrator_init(this, comm)

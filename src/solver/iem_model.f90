@@ -157,6 +157,7 @@ module iem_model
     procedure :: collect_work => model_collect_work
     procedure :: damping_work => model_damping_work
     procedure :: energy_sums => model_energy_sums
+    procedure :: kick_term => model_kick_term
     procedure :: reaction_sums => model_reaction_sums
     procedure :: rate_columns => model_rate_columns
     procedure :: rate_stages => model_rate_stages
@@ -359,14 +360,30 @@ module iem_model
 
     !> This rank's exact sums of the kinetic energy of y (owned nodes), the strain energy of
     !> the last rate evaluation (counted cells), the external work, the damping dissipation
-    !> and the fracture dissipation (counted cells), in sums(1:5), for an exact global sum
-    !> (exact_sum_allreduce).
-    module subroutine model_energy_sums(this, lat, y, sums)
+    !> and the fracture dissipation (counted cells), in sums(1:5), and the kicks' term
+    !> sums(6) (below), for an exact global sum (exact_sum_allreduce).
+    module subroutine model_energy_sums(this, lat, y, sums, acc, h)
       class(model_t), intent(in) :: this
       type(local_lattice_t), intent(in) :: lat
       real(wp), intent(in) :: y(:, :)
-      type(exact_sum_t), intent(out) :: sums(5)
+      type(exact_sum_t), intent(out) :: sums(6)
+      !> The accelerations at y and the half step h of the kicks around it (velocity Verlet):
+      !> sums(6) is then kick_term (else 0), which the kinetic energy sums(1) less is what
+      !> the kicks' work balances (docs/model.md, "Time integration").
+      real(wp), intent(in), optional :: acc(:, :), h
     end subroutine model_energy_sums
+
+    !> Velocity Verlet's kicks' term at a state whose accelerations are a (owned nodes), the
+    !> kicks around it of half step h (0: none, the sum is 0): (1/2) m h^2 |a|^2 over the
+    !> owned nodes, and h/2 times the mass and plain stiffness damping power of the last
+    !> evaluation (owned nodes, counted cells; capped damping's work takes the step's mean
+    !> force and needs none), exactly (docs/model.md, "Time integration").
+    module function model_kick_term(this, lat, a, h) result(acc)
+      class(model_t), intent(in) :: this
+      type(local_lattice_t), intent(in) :: lat
+      real(wp), intent(in) :: a(:, :), h
+      type(exact_sum_t) :: acc
+    end function model_kick_term
 
     !> Add the reactions of this rank's prescribed dofs at the last committed evaluation (the
     !> accepted state y at time t) to sums(2*(s - 1) + comp), s = series(b) of the dof's &bc

@@ -97,10 +97,18 @@ contains
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_energy_sums
-    integer :: l, c, j, m, c0, fc(max_chunk)
-    do l = 1, lat%n_owned
-      call sums(1)%add(0.5_wp*this%mass(l)*(y(3, l)**2 + y(4, l)**2))
+    integer, parameter :: nb = 256
+    integer :: l, l0, n, c, j, m, c0, fc(max_chunk)
+    real(wp) :: buf(nb)
+    ! (a buffer of terms at a time: the exact sum's array form is the faster)
+    do l0 = 1, lat%n_owned, nb
+      n = min(nb, lat%n_owned - l0 + 1)
+      do l = 1, n
+        buf(l) = 0.5_wp*this%mass(l0 + l - 1)*(y(3, l0 + l - 1)**2 + y(4, l0 + l - 1)**2)
+      end do
+      call sums(1)%add(buf(1:n))
     end do
+    if (present(acc) .and. present(h)) sums(6) = this%kick_term(lat, acc, h)
     sums(2) = this%en_sum
     sums(3) = this%w_ext_acc
     sums(4) = this%damping_work(lat)
@@ -114,6 +122,45 @@ contains
       end do
     end if
   end procedure model_energy_sums
+
+  !> Documented at its interface in iem_model.f90.
+  module procedure model_kick_term
+    integer, parameter :: nb = 256
+    integer :: l, l0, n, c, j, m, c0, k, fc(max_chunk)
+    real(wp) :: buf(nb), counted(max_chunk)
+    logical :: mass_damped
+    if (h <= 0.0_wp) return
+    ! a node's terms as one (the same on any rank), a buffer of them at a time
+    mass_damped = this%alpha > 0.0_wp .and. size(this%pw_node) >= lat%n_owned
+    do l0 = 1, lat%n_owned, nb
+      n = min(nb, lat%n_owned - l0 + 1)
+      if (mass_damped) then
+        do l = 1, n
+          buf(l) = 0.5_wp*h*(h*this%mass(l0 + l - 1)*(a(1, l0 + l - 1)**2 + &
+                   a(2, l0 + l - 1)**2) + this%pw_node(l0 + l - 1))
+        end do
+      else
+        do l = 1, n
+          buf(l) = 0.5_wp*h*h*this%mass(l0 + l - 1)*(a(1, l0 + l - 1)**2 + a(2, l0 + l - 1)**2)
+        end do
+      end if
+      call acc%add(buf(1:n))
+    end do
+    if (this%beta <= 0.0_wp .or. this%omega_cap > 0.0_wp .or. size(this%pw_cell) < lat%n_cells) &
+      return
+    ! the counted cells (first corner owned), a chunk at a time
+    do j = 1, lat%cells%n_chunks()
+      call lat%first_corners(j, fc, m)
+      c0 = lat%cells%chunks(1, j) - 1
+      k = 0
+      do c = 1, m
+        if (fc(c) > lat%n_owned) cycle
+        k = k + 1
+        counted(k) = 0.5_wp*h*this%pw_cell(c0 + c)
+      end do
+      call acc%add(counted(1:k))
+    end do
+  end procedure model_kick_term
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_reaction_sums

@@ -96,7 +96,7 @@ contains
     type(field_registry_t), target :: reg
     integer(i8), allocatable :: cg(:)
     integer, allocatable :: cells(:)
-    type(exact_sum_t) :: acc(2)
+    type(exact_sum_t) :: acc(3)
     integer(i8) :: packed(exact_sum_packed_size, 2)
     real(wp) :: slot(energy_words)
     integer :: l, c, worst
@@ -127,10 +127,13 @@ contains
     h%last_balance = this%last_balance
     ! the header records the global work rounded (for people); the exact state of each rank's
     ! accumulators goes in its slot
-    acc = [this%model%w_ext_acc, this%model%damping_work(this%lat)]
+    acc = [this%model%w_ext_acc, this%model%damping_work(this%lat), &
+           this%model%kick_term(this%lat, this%st%acc, this%integ%kick_half(this%dt))]
     call exact_sum_allreduce(acc, this%comm)
     h%w_ext = acc(1)%value()
     h%w_damp = acc(2)%value()
+    ! (for the sample at this step of a run continued from here)
+    h%kick = acc(3)%value()
     call this%model%w_ext_acc%pack(packed(:, 1))
     call this%model%w_damp_acc%pack(packed(:, 2))
     slot = real(reshape(packed, [energy_words]), wp)
@@ -192,6 +195,8 @@ contains
     call this%model%w_ext_acc%unpack(int(energy(1:exact_sum_packed_size), i8))
     call this%model%w_damp_acc%unpack(int(energy(exact_sum_packed_size + 1:), i8))
     this%e0 = this%restart%e0
+    this%kick = this%restart%kick
+    this%kick_step = this%restart%step
     this%e_scale = this%restart%e_scale
     this%last_balance = this%restart%last_balance
     this%warned = this%restart%warned /= 0

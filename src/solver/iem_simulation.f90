@@ -86,7 +86,8 @@ module iem_simulation
     character(len=64), allocatable :: series_names(:)
     character(len=256), allocatable :: series_bcs(:)
     real(wp), allocatable :: h_react(:, :, :)
-    !> The exact sums of a sample: the five energies, then x and y of each reaction series.
+    !> The exact sums of a sample: the five energies, velocity Verlet's kicks' term (0 with
+    !> RK4), then x and y of each reaction series.
     type(exact_sum_t), allocatable :: xsums(:)
     !> Fracture: the event log; the fragment count's work arrays, the last count and its
     !> largest fragments (frag_valid: counted since this process started); buffered samples.
@@ -97,6 +98,11 @@ module iem_simulation
     integer(i8), allocatable :: h_frag(:), h_largest(:, :)
     real(wp) :: e0 = 0.0_wp, e_scale = 0.0_wp, last_balance = 0.0_wp
     real(wp) :: w_ext = 0.0_wp, w_damp = 0.0_wp
+    !> Velocity Verlet's kicks' term (the model's kick_term, global, rounded) at the step
+    !> kick_step of a checkpoint or a repartitioning, for a sample at that step (-1: none):
+    !> the evaluation since took the state's velocities for the damping, not the half step's.
+    real(wp) :: kick = 0.0_wp
+    integer(i8) :: kick_step = -1
     logical :: output_open = .false.
     !> Guards: whether the energy warning has been given.
     logical :: warned = .false.

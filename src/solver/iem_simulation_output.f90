@@ -140,7 +140,7 @@ contains
   !> Gather one history sample (global sums with one Allreduce) into the buffer.
   module procedure record_sample
     integer :: p, np, b, stat, o, n_failed
-    real(wp) :: ke, se, e, scale, frac, t_from
+    real(wp) :: ke, se, e, e_bal, kick, scale, frac, t_from
 
     np = size(this%probe_gid)
     this%sample = 0.0_wp
@@ -170,12 +170,17 @@ contains
     ! the energies and the reactions as exact sums over nodes, cells and evaluations: the
     ! same bits on any number of ranks and partition (a static run's work comes from its load
     ! steps)
-    call this%model%energy_sums(this%lat, this%st%y, this%xsums(1:5))
-    do p = 6, size(this%xsums)
+    if (this%static) then
+      call this%model%energy_sums(this%lat, this%st%y, this%xsums(1:6))
+    else
+      call this%model%energy_sums(this%lat, this%st%y, this%xsums(1:6), this%st%acc, &
+                                  this%integ%kick_half(this%dt))
+    end if
+    do p = 7, size(this%xsums)
       call this%xsums(p)%reset()
     end do
     call this%model%reaction_sums(this%st%y, t, this%bc_series, .not. this%static, &
-                                  this%xsums(6:))
+                                  this%xsums(7:))
     call exact_sum_allreduce(this%xsums, this%comm)
     this%sample(1) = this%xsums(1)%value()
     this%sample(2) = this%xsums(2)%value()
@@ -192,15 +197,22 @@ contains
     ke = this%sample(1)
     se = this%sample(2)
     e = ke + se
+    ! the energy the steps' work balances: with kicks (velocity Verlet) the kinetic energy of
+    ! the velocities of the half steps around this state, ke less the kicks' term; at the
+    ! step of a checkpoint or a repartitioning, that term as the step's own evaluation gave it
+    ! (the evaluation since took the state's velocities for the damping, not the half step's)
+    kick = this%xsums(6)%value()
+    if (k == this%kick_step) kick = this%kick
+    e_bal = (ke - kick) + se
     if (k == 0) then
-      this%e0 = e
+      this%e0 = e_bal
       this%e_scale = 0.0_wp
     end if
     ! scale: the largest energy the run has held so far, so that the error stays meaningful
     ! when the current energy passes through zero
     this%e_scale = max(this%e_scale, abs(this%sample(3)), e, this%sample(4), frac)
     scale = max(this%e_scale, tiny(1.0_wp))
-    this%last_balance = abs(e + this%sample(4) + frac - this%sample(3) - this%e0)/scale
+    this%last_balance = abs(e_bal + this%sample(4) + frac - this%sample(3) - this%e0)/scale
     if (k == 0) this%last_balance = 0.0_wp
     this%h_time(b) = t
     this%h_step(b) = k
@@ -218,7 +230,7 @@ contains
       o = o + 2*springs_per_cell
     end do
     do p = 1, size(this%series_names)
-      this%h_react(:, p, b) = [this%xsums(4 + 2*p)%value(), this%xsums(5 + 2*p)%value()]
+      this%h_react(:, p, b) = [this%xsums(5 + 2*p)%value(), this%xsums(6 + 2*p)%value()]
     end do
     if (.not. this%model%fracture) return
     ! the failures to rank 0, in canonical order; the fragments counted again only when

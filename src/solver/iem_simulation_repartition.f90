@@ -9,7 +9,7 @@
 !> exact sums).
 submodule (iem_simulation) iem_simulation_repartition
   use iem_migration, only: repartition
-  use iem_exact_sum, only: exact_sum_t
+  use iem_exact_sum, only: exact_sum_t, exact_sum_allreduce
   use iem_kinds, only: ip
   use iem_timers, only: timer_total, t_force, t_update
   use mpi_f08, only: MPI_SUM, MPI_Allgather, MPI_DOUBLE_PRECISION
@@ -25,11 +25,18 @@ contains
   module procedure repartition_run
     type(field_registry_t), target :: reg
     integer(i8), allocatable :: old_owned(:), n_selected(:)
-    type(exact_sum_t) :: w_ext, w_damp, en
+    type(exact_sum_t) :: w_ext, w_damp, en, kd(1)
     type(alloc_guard_t) :: guard
     integer :: ns, l, k2, moved(1), ierr
 
     ns = this%model%n_state
+    ! the kicks' term (velocity Verlet) of the last evaluation, on the lattice it was made on,
+    ! for a sample at this step (the rebuilt model's damping powers are not that
+    ! evaluation's)
+    kd = [this%model%kick_term(this%lat, this%st%acc, this%integ%kick_half(this%dt))]
+    call exact_sum_allreduce(kd, this%comm)
+    this%kick = kd(1)%value()
+    this%kick_step = k
     ! register the run's per-node and per-cell state and copy it in (all of it, also what a
     ! checkpoint leaves out)
     call state_to_registry(this, reg, .false., stat)

@@ -230,7 +230,7 @@ contains
     ! reactions (one series a &bc name) and fracture: their buffers; a sample's sums
     call reaction_series(this)
     allocate(this%h_react(2, size(this%series_names), history_chunk))
-    allocate(this%xsums(5 + 2*size(this%series_names)))
+    allocate(this%xsums(6 + 2*size(this%series_names)))
     if (this%model%fracture) then
       allocate(this%h_frag(history_chunk), this%h_largest(n_largest, history_chunk))
       call this%events%init()

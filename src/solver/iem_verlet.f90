@@ -56,6 +56,7 @@ module iem_verlet
     procedure :: step => verlet_accept_step
     procedure :: resume => verlet_resume
     procedure :: rewind => verlet_rewind
+    procedure :: kick_half => verlet_kick_half
   end type verlet_t
 
 contains
@@ -80,6 +81,15 @@ contains
     real(wp), intent(in) :: omega_max
     verlet_undamped_dt = 2.0_wp/omega_max
   end function verlet_undamped_dt
+
+  !> dt/2: the kicks around a state at t_n take the velocities v(t_n -+ dt/2) = v -+ (dt/2) a,
+  !> and the steps' work balances (1/2) m v(t_n - dt/2).v(t_n + dt/2) = (1/2) m (|v|^2 -
+  !> (dt/2)^2 |a|^2) (docs/model.md, "Time integration").
+  pure real(wp) function verlet_kick_half(this, dt) result(h)
+    class(verlet_t), intent(in) :: this
+    real(wp), intent(in) :: dt
+    h = 0.5_wp*dt
+  end function verlet_kick_half
 
   !> False: Verlet needs no stage arrays (it updates the state in place).
   pure logical function verlet_false(this)
