@@ -76,47 +76,18 @@ contains
     class(exact_sum_t), intent(inout) :: this
     real(wp), intent(in) :: x(:)
     integer(i8) :: i, first, last, n
-    integer(i8) :: other(0:top), nf(3), la, ma, ha, lb, mb, hb
-    integer :: ka, kb
-    nf = 0_i8
     n = size(x, kind=i8)
     first = 1
     do while (first <= n)
       ! as many terms as fit before the next normalisation
       last = min(n, first + (exact_sum_renorm_interval - this%n_pending) - 1)
-      if (last - first >= 32) then
-        ! every other term into a second set of bins, so that the additions of neighbouring
-        ! terms (which hit the same bins) do not wait for each other; the bins' sum is the
-        ! same integers
-        other = 0_i8
-        do i = first, last - 1, 2
-          call limbs(x(i), ka, la, ma, ha)
-          call limbs(x(i + 1), kb, lb, mb, hb)
-          if (min(ka, kb) < 0) then
-            ! a non-finite term among the two: each its own way
-            call deposit_in(this%bin, nf, x(i))
-            call deposit_in(other, nf, x(i + 1))
-            cycle
-          end if
-          this%bin(ka) = this%bin(ka) + la
-          this%bin(ka + 1) = this%bin(ka + 1) + ma
-          this%bin(ka + 2) = this%bin(ka + 2) + ha
-          other(kb) = other(kb) + lb
-          other(kb + 1) = other(kb + 1) + mb
-          other(kb + 2) = other(kb + 2) + hb
-        end do
-        if (mod(last - first + 1, 2_i8) == 1) call deposit_in(this%bin, nf, x(last))
-        this%bin = this%bin + other
-      else
-        do i = first, last
-          call deposit_in(this%bin, nf, x(i))
-        end do
-      end if
+      do i = first, last
+        call deposit(this, x(i))
+      end do
       this%n_pending = this%n_pending + (last - first + 1)
       if (this%n_pending >= exact_sum_renorm_interval) call this%normalise()
       first = last + 1
     end do
-    call add_nonfinite(this, nf)
   end subroutine exact_sum_add_array
 
   !> Add w*x(i) for every element of x exactly (each product rounded as w*x(i) alone is):
@@ -124,76 +95,40 @@ contains
   pure subroutine exact_sum_add_scaled(this, x, w)
     class(exact_sum_t), intent(inout) :: this
     real(wp), intent(in) :: x(:), w
-    integer, parameter :: nb = 256
-    real(wp) :: buf(nb)
-    integer(i8) :: first, n
-    integer :: i, m
+    integer(i8) :: i, first, last, n
     n = size(x, kind=i8)
-    ! the products a buffer at a time, through the array form
-    do first = 1, n, nb
-      m = int(min(int(nb, i8), n - first + 1))
-      do i = 1, m
-        buf(i) = w*x(first + i - 1)
+    first = 1
+    do while (first <= n)
+      last = min(n, first + (exact_sum_renorm_interval - this%n_pending) - 1)
+      do i = first, last
+        call deposit(this, w*x(i))
       end do
-      call this%add_array(buf(1:m))
+      this%n_pending = this%n_pending + (last - first + 1)
+      if (this%n_pending >= exact_sum_renorm_interval) call this%normalise()
+      first = last + 1
     end do
   end subroutine exact_sum_add_scaled
 
-  !> Add x's limbs (limbs) to this's bins k, k+1, k+2, or count it when not finite.
+  !> The hot kernel: x = m * 2**(p - 1074), m the signed 53-bit integer significand, p >= 0
+  !> the position of its lowest bit; m * 2**s (s = mod(p, 32)) is cut into two limbs in
+  !> [0, 2**32) and a signed top limb, added to bins k = p/32, k+1, k+2. Branch-free but for
+  !> Inf/NaN; no multiplication (a signed split costs less than multiplying by the sign).
   pure subroutine deposit(this, x)
     type(exact_sum_t), intent(inout) :: this
     real(wp), intent(in) :: x
-    integer(i8) :: nf(3)
-    nf = 0_i8
-    call deposit_in(this%bin, nf, x)
-    call add_nonfinite(this, nf)
-  end subroutine deposit
-
-  !> The counts nf of NaN, +Inf and -Inf terms added to this's.
-  pure subroutine add_nonfinite(this, nf)
-    type(exact_sum_t), intent(inout) :: this
-    integer(i8), intent(in) :: nf(3)
-    this%n_nan = this%n_nan + nf(1)
-    this%n_pos_inf = this%n_pos_inf + nf(2)
-    this%n_neg_inf = this%n_neg_inf + nf(3)
-  end subroutine add_nonfinite
-
-  !> deposit's limbs of x added to bin (an accumulator's or a second set of bins), and a
-  !> non-finite x counted in nf (NaN, +Inf, -Inf) instead.
-  pure subroutine deposit_in(bin, nf, x)
-    integer(i8), intent(inout) :: bin(0:top), nf(3)
-    real(wp), intent(in) :: x
-    integer(i8) :: lo, mid, hi
-    integer :: k
-    call limbs(x, k, lo, mid, hi)
-    if (k < 0) then
-      nf(-k) = nf(-k) + 1
-      return
-    end if
-    bin(k) = bin(k) + lo
-    bin(k + 1) = bin(k + 1) + mid
-    bin(k + 2) = bin(k + 2) + hi
-  end subroutine deposit_in
-
-  !> x = m * 2**(p - 1074), m the signed 53-bit integer significand, p >= 0 the position of
-  !> its lowest bit, as three limbs lo, mid (in [0, 2**32)) and hi (signed) of weights
-  !> 2**(32 (k + i) - 1074), i = 0, 1, 2, of bins k = p/32 .. k + 2 (m * 2**s, s = mod(p, 32));
-  !> k = -1, -2, -3 for NaN, +Inf, -Inf (no limbs). Branch-free but for Inf/NaN; no
-  !> multiplication (a signed split costs less than multiplying by the sign).
-  pure subroutine limbs(x, k, lo, mid, hi)
-    real(wp), intent(in) :: x
-    integer, intent(out) :: k
-    integer(i8), intent(out) :: lo, mid, hi
     integer(i8) :: bits, m, t, neg
-    integer :: e, p, s
+    integer :: e, p, k, s
     bits = transfer(x, 0_i8)
     e = int(ibits(bits, 52, 11))
     m = ibits(bits, 0, 52)
     if (e == 2047) then
-      k = merge(-1, merge(-3, -2, bits < 0_i8), m /= 0_i8)
-      lo = 0_i8
-      mid = 0_i8
-      hi = 0_i8
+      if (m /= 0_i8) then
+        this%n_nan = this%n_nan + 1
+      else if (bits < 0_i8) then
+        this%n_neg_inf = this%n_neg_inf + 1
+      else
+        this%n_pos_inf = this%n_pos_inf + 1
+      end if
       return
     end if
     ! normal numbers carry the hidden bit; subnormals (e = 0) share the exponent of e = 1
@@ -207,10 +142,10 @@ contains
     ! m * 2**s = lo + 2**32 * t with lo the low 32 bits and t = floor(m * 2**s / 2**32);
     ! t = mid + 2**32 * hi likewise
     t = shifta(m, 32 - s)
-    lo = iand(shiftl(m, s), mask32)
-    mid = iand(t, mask32)
-    hi = shifta(t, 32)
-  end subroutine limbs
+    this%bin(k) = this%bin(k) + iand(shiftl(m, s), mask32)
+    this%bin(k + 1) = this%bin(k + 1) + iand(t, mask32)
+    this%bin(k + 2) = this%bin(k + 2) + shifta(t, 32)
+  end subroutine deposit
 
   !> Propagate carries: every bin but the last in [0, 2**32), the last one signed. The exact
   !> sum is unchanged.
