@@ -50,7 +50,17 @@ contains
     if (this%alpha > 0.0_wp .and. size(this%wd_node) > 0) &
       call acc%add(this%wd_node(1:min(lat%n_owned, size(this%wd_node))))
     if (this%beta <= 0.0_wp .or. size(this%wd_cell) < lat%n_cells) return
-    ! the counted cells (first corner owned), a chunk at a time
+    call add_counted(lat, this%wd_cell, 1.0_wp, acc)
+  end subroutine add_folds
+
+  !> w times the values v(c) of the counted cells (first corner owned) added to acc, a chunk
+  !> at a time (w = 1: the values themselves).
+  subroutine add_counted(lat, v, w, acc)
+    type(local_lattice_t), intent(in) :: lat
+    real(wp), intent(in) :: v(:), w
+    type(exact_sum_t), intent(inout) :: acc
+    integer :: c, j, m, c0, k, fc(max_chunk)
+    real(wp) :: counted(max_chunk)
     do j = 1, lat%cells%n_chunks()
       call lat%first_corners(j, fc, m)
       c0 = lat%cells%chunks(1, j) - 1
@@ -58,11 +68,11 @@ contains
       do c = 1, m
         if (fc(c) > lat%n_owned) cycle
         k = k + 1
-        counted(k) = this%wd_cell(c0 + c)
+        counted(k) = w*v(c0 + c)
       end do
       call acc%add(counted(1:k))
     end do
-  end subroutine add_folds
+  end subroutine add_counted
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_fold_work
@@ -98,7 +108,7 @@ contains
   !> Documented at its interface in iem_model.f90.
   module procedure model_energy_sums
     integer, parameter :: nb = 256
-    integer :: l, l0, n, c, j, m, c0, fc(max_chunk)
+    integer :: l, l0, n
     real(wp) :: buf(nb)
     ! (a buffer of terms at a time: the exact sum's array form is the faster)
     do l0 = 1, lat%n_owned, nb
@@ -112,22 +122,14 @@ contains
     sums(2) = this%en_sum
     sums(3) = this%w_ext_acc
     sums(4) = this%damping_work(lat)
-    if (this%fracture) then
-      do j = 1, lat%cells%n_chunks()
-        call lat%first_corners(j, fc, m)
-        c0 = lat%cells%chunks(1, j) - 1
-        do c = 1, m
-          if (fc(c) <= lat%n_owned) call sums(5)%add(this%fr%diss(c0 + c))
-        end do
-      end do
-    end if
+    if (this%fracture) call add_counted(lat, this%fr%diss, 1.0_wp, sums(5))
   end procedure model_energy_sums
 
   !> Documented at its interface in iem_model.f90.
   module procedure model_kick_term
     integer, parameter :: nb = 256
-    integer :: l, l0, n, c, j, m, c0, k, fc(max_chunk)
-    real(wp) :: buf(nb), counted(max_chunk)
+    integer :: l, l0, n
+    real(wp) :: buf(nb)
     logical :: mass_damped
     if (h <= 0.0_wp) return
     ! a node's terms as one (the same on any rank), a buffer of them at a time
@@ -146,20 +148,8 @@ contains
       end if
       call acc%add(buf(1:n))
     end do
-    if (this%beta <= 0.0_wp .or. this%omega_cap > 0.0_wp .or. size(this%pw_cell) < lat%n_cells) &
-      return
-    ! the counted cells (first corner owned), a chunk at a time
-    do j = 1, lat%cells%n_chunks()
-      call lat%first_corners(j, fc, m)
-      c0 = lat%cells%chunks(1, j) - 1
-      k = 0
-      do c = 1, m
-        if (fc(c) > lat%n_owned) cycle
-        k = k + 1
-        counted(k) = 0.5_wp*h*this%pw_cell(c0 + c)
-      end do
-      call acc%add(counted(1:k))
-    end do
+    if (this%beta > 0.0_wp .and. this%omega_cap <= 0.0_wp .and. &
+        size(this%pw_cell) >= lat%n_cells) call add_counted(lat, this%pw_cell, 0.5_wp*h, acc)
   end procedure model_kick_term
 
   !> Documented at its interface in iem_model.f90.
