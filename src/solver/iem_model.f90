@@ -158,6 +158,7 @@ module iem_model
     procedure :: damping_work => model_damping_work
     procedure :: energy_sums => model_energy_sums
     procedure :: kick_term => model_kick_term
+    procedure :: slot_power
     procedure :: reaction_sums => model_reaction_sums
     procedure :: rate_columns => model_rate_columns
     procedure :: rate_stages => model_rate_stages
@@ -477,6 +478,21 @@ contains
                                                 tf_value(this%bc_tf(b), t)
     end do
   end subroutine model_prescribe
+
+  !> The power at the state y of slot s's loads: of their mean over velocity Verlet's step
+  !> where it differs from fext (fmean_on), else of fext.
+  pure real(wp) function slot_power(this, s, y) result(p)
+    class(model_t), intent(in) :: this
+    integer, intent(in) :: s
+    real(wp), intent(in) :: y(:, :)
+    integer :: l
+    l = this%ext_node(s)
+    if (this%fmean_on) then
+      p = this%fmean(1, s)*y(3, l) + this%fmean(2, s)*y(4, l)
+    else
+      p = this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
+    end if
+  end function slot_power
 
   !> Columns the state's rates array acc needs for this model: none for RK4 with 4 values a
   !> node (rk4_work; its fused passes never read it), every local node's when the forces are

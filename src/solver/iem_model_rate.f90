@@ -235,18 +235,9 @@ contains
         call this%reaction_terms(n, fs, y, t, this%fext, keep, this%pr_bc(n), this%pr_on(n))
       end do
       fs(:, lat%n_owned + 1:lat%n_local) = 0.0_wp
-      if (this%fmean_on) then
-        ! (velocity Verlet: the loads' mean over the step)
-        do s = 1, size(this%ext_node)
-          l = this%ext_node(s)
-          this%pe_slot(s) = this%fmean(1, s)*y(3, l) + this%fmean(2, s)*y(4, l)
-        end do
-      else
-        do s = 1, size(this%ext_node)
-          l = this%ext_node(s)
-          this%pe_slot(s) = this%fext(1, s)*y(3, l) + this%fext(2, s)*y(4, l)
-        end do
-      end if
+      do s = 1, size(this%ext_node)
+        this%pe_slot(s) = this%slot_power(s, y)
+      end do
       call external_power()
       if (this%alpha > 0.0_wp) call mass_damping_powers(lat%n_owned, this%alpha, this%mass, y, &
                                                         this%pw_node, p_damp, this%wd_node, fold)

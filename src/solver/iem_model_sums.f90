@@ -45,8 +45,6 @@ contains
     class(model_t), intent(in) :: this
     type(local_lattice_t), intent(in) :: lat
     type(exact_sum_t), intent(inout) :: acc
-    integer :: c, j, m, c0, k, fc(max_chunk)
-    real(wp) :: counted(max_chunk)
     if (this%alpha > 0.0_wp .and. size(this%wd_node) > 0) &
       call acc%add(this%wd_node(1:min(lat%n_owned, size(this%wd_node))))
     if (this%beta <= 0.0_wp .or. size(this%wd_cell) < lat%n_cells) return
@@ -237,11 +235,7 @@ contains
     do while (js <= size(this%ext_node))
       l = this%ext_node(js)
       if (l > hi) exit
-      if (this%fmean_on) then
-        this%pe_slot(js) = this%fmean(1, js)*y(3, l) + this%fmean(2, js)*y(4, l)
-      else
-        this%pe_slot(js) = this%fext(1, js)*y(3, l) + this%fext(2, js)*y(4, l)
-      end if
+      this%pe_slot(js) = this%slot_power(js, y)
       fs(:, l) = fs(:, l) - this%fext(:, js)
       js = js + 1
     end do
