@@ -108,3 +108,18 @@ def test_weak_scaling_is_read_against_two_runs_at_once():
     assert m.figure(runs.__getitem__) == pytest.approx(0.8)
     # the 1-rank run alone does not enter it
     assert "rk4_1e5" not in m.cases
+
+
+def test_square_holes_have_the_round_holes_area_and_centres():
+    block = "&run\n/\n&bc\n  where = 'left'\n/\n"
+    text = speed.with_square_holes(block)
+    assert text.count("kind = 'rectangle'") == 8
+    assert text.index("&shape") < text.index("&bc")
+    boxes = [[float(v) for v in line.split("box =", 1)[1].split(",")[:4]]
+             for line in text.splitlines() if "box =" in line]
+    centres = {(round(0.5 * (b[0] + b[1]), 4), round(0.5 * (b[2] + b[3]), 4)) for b in boxes}
+    assert centres == {(0.25 + 0.5 * i, 0.25 + 0.5 * j) for i in range(4) for j in range(2)}
+    for x0, x1, y0, y1 in boxes:
+        assert (x1 - x0) * (y1 - y0) == pytest.approx(3.141592653589793 * 0.15**2, rel=1e-5)
+    # the round holes' case names the same centres
+    assert speed.with_holes(block).count("kind = 'circle'") == 8
