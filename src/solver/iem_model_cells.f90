@@ -11,13 +11,15 @@ contains
   module procedure model_cells
     ! no array of the cells' energies: an empty one says so (the kernel then forms no plain
     ! sum of them either)
-    real(wp) :: none(0), mid
+    real(wp) :: none(0), mid, decay
     if (present(damaged)) damaged = .false.
     ! velocity Verlet's step: capped damping's power at the filtered velocity of the step's
     ! middle, (w_n + w_(n+1))/2 = w - mid (v - w) with mid = c/(2 (1 - c)), c = 1 - exp(-wc dt)
     mid = 0.0_wp
-    if (this%mean_dt > 0.0_wp .and. this%omega_cap > 0.0_wp) &
-      mid = 0.5_wp*(1.0_wp - exp(-this%omega_cap*this%mean_dt))/exp(-this%omega_cap*this%mean_dt)
+    if (this%mean_dt > 0.0_wp .and. this%omega_cap > 0.0_wp) then
+      decay = exp(-this%omega_cap*this%mean_dt)
+      mid = 0.5_wp*(1.0_wp - decay)/decay
+    end if
     if (this%nonlinear) then
       if (this%mixed) then
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
