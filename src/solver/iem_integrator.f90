@@ -17,7 +17,11 @@
 !> reads the state between that step and the next (no sample, frame, checkpoint or
 !> repartitioning; the next step follows): the step may then leave the state part way into
 !> the next one (velocity Verlet: the next step's first kick and drift), which rewind brings
-!> back should settle reject the step.
+!> back should settle reject the step. With local set (runs on more than one rank), a step's
+!> verdict stays on its rank: step and settle say whether this rank's new values were finite,
+!> no rank waits for another, and after a rejection carry_on lets the rank go on stepping on
+!> finite values until the driver's next agreement (docs/architecture.md, "How the ranks agree
+!> on a non-finite step").
 module iem_integrator
   use mpi_f08, only: MPI_Comm
   use iem_kinds, only: wp
@@ -43,6 +47,9 @@ module iem_integrator
     !> With next_plain: no history sample reads the evaluation of the step after the next
     !> one (its rates may be evaluated with the next step's).
     logical :: next_forces = .false.
+    !> Each step's verdict is this rank's own (no reduction a step): the driver agrees on the
+    !> first rejected step at the steps that read the state, and steps again to it.
+    logical :: local = .false.
   contains
     procedure :: init => integrator_init
     procedure(integrator_name_i), deferred :: name
@@ -55,6 +62,7 @@ module iem_integrator
     procedure(integrator_resume_i), deferred :: resume
     procedure :: settle => integrator_settle
     procedure :: rewind => integrator_rewind
+    procedure :: carry_on => integrator_carry_on
     procedure :: kick_half => integrator_kick_half
   end type integrator_t
 
@@ -163,6 +171,15 @@ contains
     type(state_t), intent(inout) :: st
     real(wp), intent(in) :: t
   end subroutine integrator_rewind
+
+  !> With local, after this rank rejected a step: leave the verdict clear and the state and
+  !> rates finite, so that the rank goes on stepping (what it computes until the driver's
+  !> agreement is thrown away) without a non-finite value reaching its neighbours (here:
+  !> nothing is kept of the verdict).
+  subroutine integrator_carry_on(this, st)
+    class(integrator_t), intent(inout) :: this
+    type(state_t), intent(inout) :: st
+  end subroutine integrator_carry_on
 
   !> The half step h of the kicks around a state of a run of step dt, which the energy balance
   !> takes the kinetic energy (1/2) m (|v|^2 - h^2 |a|^2) at (the one its steps' work

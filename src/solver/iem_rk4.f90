@@ -28,7 +28,8 @@ module iem_rk4
   !> Classical RK4 as an integrator_t: rates evaluated at the top of every step, stages 2-4
   !> and the update in step, which accepts only a finite new state. Each rank tests its own
   !> new state; the ranks agree on it with a non-blocking reduction that completes behind the
-  !> next step's halo exchange (settle), before anything overwrites the state it replaced.
+  !> next step's halo exchange (settle), before anything overwrites the state it replaced
+  !> (with local, not: the verdict is the rank's, and the driver agrees later).
   type, extends(integrator_t) :: rk4_t
     !> Whether stage 1 of the next step goes with its stages 2-4 as one wavefront (the model's
     !> rate_stages): set by a step that nothing follows but the next one (next_plain), where
@@ -48,6 +49,7 @@ module iem_rk4
     procedure :: step => rk4_step
     procedure :: resume => rk4_resume
     procedure :: settle => rk4_settle
+    procedure :: carry_on => rk4_carry_on
   end type rk4_t
 
 contains
@@ -116,7 +118,8 @@ contains
   end subroutine rk4_prepare
 
   !> Stages 2-4 and the update: a finite new state is swapped in on this rank, and the ranks'
-  !> agreement is started (settle completes it; accepted is .true. until then).
+  !> agreement is started (settle completes it; accepted is .true. until then); with local,
+  !> accepted is this rank's verdict.
   subroutine rk4_step(this, model, lat, halo, st, t, dt, w_ext, w_damp, accepted)
     class(rk4_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
@@ -130,11 +133,27 @@ contains
                          this%deferred)
     this%deferred = .false.
     if (this%next_plain) this%deferred = model%stages_fit(lat, size(st%y, 1))
+    if (this%local) then
+      ! (this rank's verdict: a rejected state was not swapped in, y is the one before)
+      this%swapped = .false.
+      this%all = this%mine
+      accepted = this%mine
+      return
+    end if
     this%swapped = this%mine
     call MPI_Iallreduce(this%mine, this%all, 1, MPI_LOGICAL, MPI_LAND, this%comm, this%req)
     this%pending = .true.
     accepted = .true.
   end subroutine rk4_step
+
+  !> After a rejected step with local: y already holds the finite state before it (the next
+  !> step starts from there again); only the verdict is cleared.
+  subroutine rk4_carry_on(this, st)
+    class(rk4_t), intent(inout) :: this
+    type(state_t), intent(inout) :: st
+    this%mine = .true.
+    this%all = .true.
+  end subroutine rk4_carry_on
 
   !> Complete the ranks' agreement on the last step (at once if already complete); when some
   !> rank's new state was not finite, every rank goes back: y holds the state before the

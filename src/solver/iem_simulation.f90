@@ -1,11 +1,13 @@
 !> A whole run: set up the lattice, model and output from a validated configuration, then
 !> march in time with an integrator (analysis = 'dynamic') or relax load step by load step
 !> (analysis = 'static'), recording history, frames and progress. This module holds the run's
-!> type and its driver, which only sequences the parts that live in the submodules: set-up
-!> (_setup), the history recorder and frames (_output), checkpoints and continued runs
+!> type and its entry points, which only sequence the parts that live in the submodules:
+!> set-up (_setup), the time loop (_dynamic) and its schedule of the steps that read the state
+!> (_schedule), the history recorder and frames (_output), checkpoints and continued runs
 !> (iem_restart), the run's fields for checkpoints and repartitioning (_fields), the guards
-!> (_guards), the static load steps (_static) and the reports (_report); the integrators
-!> are behind iem_integrator's interface (docs/architecture.md).
+!> (_guards), the ranks' agreement on a non-finite step (_agreement), the static load steps
+!> (_static) and the reports (_report); the integrators are behind iem_integrator's interface
+!> (docs/architecture.md).
 module iem_simulation
   use mpi_f08, only: MPI_Comm, MPI_Allreduce, MPI_MAX, MPI_IN_PLACE, MPI_Wtime, MPI_LOGICAL, &
     MPI_LAND, MPI_INTEGER
@@ -111,6 +113,14 @@ module iem_simulation
     !> The last history sample written (time and the five energies) and the time of the last
     !> frame: a checkpoint records them to recognise its output on a restart.
     real(wp) :: last_sample(7) = 0.0_wp, last_frame_time = 0.0_wp
+    !> Runs on more than one rank once they have an origin (the integrator's local): this
+    !> rank's first rejected step since the last agreement (huge: none); the origin, the
+    !> checkpoint a diverging run steps again from (the last one this run wrote, or the one it
+    !> continues from), and whether it is the one written at step 0 for that alone (removed at
+    !> the end).
+    integer(i8) :: k_bad = huge(1_i8)
+    character(len=:), allocatable :: origin
+    logical :: origin_only = .false.
     !> Load balancing: this rank's computing seconds (force evaluation and state updates) at
     !> the last look.
     real(wp) :: balance_mark = 0.0_wp
@@ -129,14 +139,16 @@ module iem_simulation
       character(len=:), allocatable, intent(out) :: msg
     end subroutine check_restart
 
-    !> Write a checkpoint of the state at the top of step k (sig: the signal the run stops on).
-    module subroutine write_checkpoint(this, k, t, sig, stat, msg)
+    !> Write a checkpoint of the state at the top of step k (sig: the signal the run stops on;
+    !> quiet: not logged); it becomes the run's origin.
+    module subroutine write_checkpoint(this, k, t, sig, stat, msg, quiet)
       type(simulation_t), intent(inout) :: this
       integer(i8), intent(in) :: k
       real(wp), intent(in) :: t
       integer, intent(in) :: sig
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
+      logical, intent(in), optional :: quiet
     end subroutine write_checkpoint
 
     !> Restore the state of the checkpoint this run continues from.
@@ -278,6 +290,15 @@ module iem_simulation
       integer, intent(out) :: stat
     end subroutine write_frame
 
+    !> The time loop of a dynamic run, from step 0 or the checkpoint it continues from, to
+    !> n_steps: at the top of each step a checkpoint when due, the integrator's rates, the
+    !> guards, the history sample and the frame when due, progress; then the integrator's step.
+    module subroutine run_dynamic(this, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine run_dynamic
+
     !> The load steps of a static run: relax to equilibrium at each pseudo-time t_k = k t_end/N
     !> (k = 0: the equilibrium at t = 0, usually the unloaded state), then record one history
     !> sample and one frame; stat /= 0 when a step does not converge or diverges.
@@ -324,6 +345,69 @@ module iem_simulation
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
     end subroutine stop_rejected
+
+    !> Whether the ranks look at their balance at the top of step k (balance_interval, more
+    !> than one rank, not the repartition step).
+    module pure logical function balance_due(this, k)
+      type(simulation_t), intent(in) :: this
+      integer(i8), intent(in) :: k
+    end function balance_due
+
+    !> Whether step k (at t; the step before it at t_prev) takes a history sample.
+    module pure logical function sample_due(this, k, t_prev, t)
+      type(simulation_t), intent(in) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t_prev, t
+    end function sample_due
+
+    !> Whether step k (at t; the step before it at t_prev) writes a frame.
+    module pure logical function frame_due(this, k, t_prev, t)
+      type(simulation_t), intent(in) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t_prev, t
+    end function frame_due
+
+    !> Whether nothing reads the state of step k (at t; the step before it at t_prev) before
+    !> step k + 1 starts from it: k is not the last step, and at k the loop of run_dynamic
+    !> takes no history sample, writes no frame, does not look for a checkpoint and does not
+    !> repartition or look at the balance (the integrator may then leave the state part way
+    !> into step k + 1).
+    module pure logical function quiet_step(this, k, t_prev, t) result(quiet)
+      type(simulation_t), intent(in) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t_prev, t
+    end function quiet_step
+
+    !> Runs with the integrator's local: agree over the ranks on the first step rejected since
+    !> the last agreement (before anything reads the state); with one, step again from the
+    !> origin checkpoint to it and stop there as stop_rejected does (stat = 3). Collective.
+    module subroutine agree_steps(this, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine agree_steps
+
+    !> Runs with the integrator's local: this rank rejected step k; keep the first such step
+    !> and let the integrator go on stepping on finite values until the next agreement.
+    module subroutine note_rejected(this, k)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+    end subroutine note_rejected
+
+    !> Runs on more than one rank that continue no checkpoint and write none at intervals:
+    !> write one of the state at step 0 (before the time loop), the origin a diverging run
+    !> steps again from, with which each step's verdict stays on its rank; when it cannot be
+    !> written, warn (the ranks then agree on every step). Collective.
+    module subroutine write_origin(this, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine write_origin
+
+    !> Remove the origin checkpoint when it was written for that alone. Collective.
+    module subroutine drop_origin(this)
+      type(simulation_t), intent(inout) :: this
+    end subroutine drop_origin
 
     !> Energy guard after a history sample: warn once above energy_warn, stop above
     !> energy_stop, naming the node with the largest speed (where a divergence grows fastest)
@@ -411,158 +495,8 @@ contains
     call this%model%prescribe(this%st%y, 0.0_wp)
   end subroutine allocate_state
 
-  !> The time loop of a dynamic run, from step 0 or the checkpoint it continues from, to
-  !> n_steps: at the top of each step a checkpoint when due, the integrator's rates, the
-  !> guards, the history sample and the frame when due, progress; then the integrator's step.
-  subroutine run_dynamic(this, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    integer(i8) :: k, k_first
-    real(wp) :: t, t_prev, wall0, wall_last, next_report
-    logical :: diverged, accepted, sampled
-
-    call report_start(this)
-    wall0 = MPI_Wtime()
-    wall_last = wall0
-    next_report = 0.1_wp
-    t_prev = -1.0_wp
-    this%w_ext = 0.0_wp
-    this%w_damp = 0.0_wp
-    k_first = 0
-    if (this%restart%step > 0) then
-      call load_checkpoint(this, stat, msg)
-      if (stat /= 0) return
-      call this%integ%resume(this%model, this%lat, this%halo, this%st, this%restart%t)
-      k_first = this%restart%step
-      t_prev = real(k_first - 1, wp)*this%dt
-      next_report = real(floor(10.0_wp*real(k_first, wp)/real(this%n_steps, wp)) + 1, wp)/10.0_wp
-      call log_info('continuing from '//trim(this%cfg%run%restart)//' at step '// &
-                    itoa(k_first)//', t = '//rtoa(real(k_first, wp)*this%dt)//' s')
-    end if
-    do k = k_first, this%n_steps
-      t = real(k, wp)*this%dt
-      if (k > k_first) then
-        call checkpoint_if_due(this, k, t, t_prev, stat, msg)
-        if (stat /= 0) return
-        if (k == int(this%cfg%run%repartition_step, i8) .or. balance_due(this, k)) then
-          ! (the last step must stand before the state moves)
-          call this%integ%settle(this%st, accepted)
-          if (.not. accepted) then
-            call stop_rejected(this, k, t, stat, msg)
-            return
-          end if
-          if (k == int(this%cfg%run%repartition_step, i8)) then
-            call repartition_run(this, k, stat, msg)
-          else
-            call balance_run(this, k, stat, msg)
-          end if
-          if (stat /= 0) return
-        end if
-      end if
-      ! each node's and cell's damping work of the last steps into the exact sum, at steps
-      ! that do not depend on the ranks (docs/numerics.md)
-      if (mod(k, int(work_collect_steps, i8)) == 0) call this%model%collect_work(this%lat)
-      ! a history sample at this step; the cells' energies only for the states one reads
-      sampled = sample_due(this, k, t_prev, t)
-      this%model%energies_due = sampled
-      call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, this%dt, k == 0)
-      ! the last step stands once every rank agrees (RK4 agrees behind prepare's exchange)
-      call this%integ%settle(this%st, accepted)
-      if (.not. accepted) then
-        call stop_rejected(this, k, t, stat, msg)
-        return
-      end if
-      if (sampled) then
-        call record_sample(this, k, t, diverged)
-        if (diverged) then
-          call stop_diverged(this, k, t, stat, msg)
-          return
-        end if
-        call energy_guard(this, k, t, stat, msg)
-        if (stat /= 0) return
-      end if
-      if (frame_due(this, k, t_prev, t)) then
-        call timer_start(t_output)
-        call flush_history(this, stat)
-        if (stat == 0) call write_frame(this, k, t, stat)
-        call timer_stop(t_output)
-        if (stat /= 0) then
-          msg = 'writing output to '//trim(this%cfg%run%output_file)//' failed'
-          return
-        end if
-      end if
-      if (this%rank == 0) call progress(this, k, t, wall0, wall_last, next_report)
-      if (k == this%n_steps) exit
-      this%integ%t_next = real(k + 1, wp)*this%dt
-      this%model%energies_due = sample_due(this, k + 1, t, this%integ%t_next)
-      this%integ%next_plain = quiet_step(this, k + 1, t, this%integ%t_next)
-      this%integ%next_forces = .false.
-      if (k + 2 <= this%n_steps) this%integ%next_forces = &
-        .not. sample_due(this, k + 2, this%integ%t_next, real(k + 2, wp)*this%dt)
-      call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
-                           this%w_damp, accepted)
-      if (.not. accepted) then
-        call stop_rejected(this, k + 1, t + this%dt, stat, msg)
-        return
-      end if
-      t_prev = t
-    end do
-    this%model%energies_due = .true.
-    call flush_history(this, stat)
-    if (stat /= 0) then
-      msg = 'writing the history to '//trim(this%cfg%run%output_file)//' failed'
-      return
-    end if
-    call log_info('done: '//itoa(this%n_steps)//' steps in '//rtoa(MPI_Wtime() - wall0)// &
-                  ' s wall; final energy-balance error '//rtoa(this%last_balance))
-    call report_performance(this, MPI_Wtime() - wall0)
-  end subroutine run_dynamic
-
-  !> Whether the ranks look at their balance at the top of step k (balance_interval, more
-  !> than one rank, not the repartition step).
-  pure logical function balance_due(this, k)
-    type(simulation_t), intent(in) :: this
-    integer(i8), intent(in) :: k
-    balance_due = this%cfg%run%balance_interval > 0 .and. this%n_ranks > 1 .and. k > 0 .and. &
-                  k /= int(this%cfg%run%repartition_step, i8)
-    if (balance_due) balance_due = mod(k, int(this%cfg%run%balance_interval, i8)) == 0
-  end function balance_due
-
-  !> Whether step k (at t; the step before it at t_prev) takes a history sample.
-  pure logical function sample_due(this, k, t_prev, t)
-    type(simulation_t), intent(in) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t_prev, t
-    sample_due = k == 0 .or. k == this%n_steps .or. &
-                 crossed(t_prev, t, this%cfg%run%history_interval)
-  end function sample_due
-
-  !> Whether step k (at t; the step before it at t_prev) writes a frame.
-  pure logical function frame_due(this, k, t_prev, t)
-    type(simulation_t), intent(in) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t_prev, t
-    frame_due = k == 0 .or. k == this%n_steps .or. &
-                crossed(t_prev, t, this%cfg%run%output_interval)
-  end function frame_due
-
-  !> Whether nothing reads the state of step k (at t; the step before it at t_prev) before
-  !> step k + 1 starts from it: k is not the last step, and at k the loop of run_dynamic
-  !> takes no history sample, writes no frame, does not look for a checkpoint and does not
-  !> repartition or look at the balance (the integrator may then leave the state part way
-  !> into step k + 1).
-  pure logical function quiet_step(this, k, t_prev, t) result(quiet)
-    type(simulation_t), intent(in) :: this
-    integer(i8), intent(in) :: k
-    real(wp), intent(in) :: t_prev, t
-    quiet = k < this%n_steps .and. k /= int(this%cfg%run%repartition_step, i8) .and. &
-            .not. balance_due(this, k)
-    if (quiet) quiet = .not. (sample_due(this, k, t_prev, t) .or. frame_due(this, k, t_prev, t) &
-                              .or. checkpoint_looks(this, k, t_prev, t))
-  end function quiet_step
-
-  !> Close the output (marking it complete when the run ended normally).
+  !> Close the output (marking it complete when the run ended normally); remove the origin
+  !> checkpoint written for a diverging run alone.
   subroutine simulation_finish(this, complete, stat, msg)
     class(simulation_t), intent(inout) :: this
     logical, intent(in) :: complete
@@ -570,6 +504,7 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     stat = 0
     msg = ''
+    call drop_origin(this)
     if (this%output_open) then
       call this%out%close(complete, stat, msg)
       this%output_open = .false.

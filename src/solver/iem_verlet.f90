@@ -29,7 +29,8 @@ module iem_verlet
   !> to the next step; no stage arrays. The second kick of a step is guarded (where its new
   !> velocities are not finite the rates array keeps the half-step ones); the ranks agree on
   !> the step with a non-blocking reduction that settle completes at the top of the next step,
-  !> before the state moves again.
+  !> before the state moves again (with local, not: the verdict is the rank's, and the driver
+  !> agrees later).
   type, extends(integrator_t) :: verlet_t
     !> The agreement on the last step (or on the rates of the start): pending, this rank's
     !> verdict, every rank's, and the request.
@@ -57,6 +58,7 @@ module iem_verlet
     procedure :: resume => verlet_resume
     procedure :: rewind => verlet_rewind
     procedure :: kick_half => verlet_kick_half
+    procedure :: carry_on => verlet_carry_on
   end type verlet_t
 
 contains
@@ -125,7 +127,8 @@ contains
   end subroutine verlet_prepare
 
   !> One velocity Verlet step (verlet_step); the ranks' agreement on it is started (settle
-  !> completes it; accepted is .true. until then).
+  !> completes it; accepted is .true. until then); with local, accepted is this rank's
+  !> verdict.
   subroutine verlet_accept_step(this, model, lat, halo, st, t, dt, w_ext, w_damp, accepted)
     class(verlet_t), intent(inout) :: this
     type(model_t), intent(inout) :: model
@@ -148,7 +151,9 @@ contains
     this%paired = pair
     this%h = 0.5_wp*dt
     call vote(this)
+    ! (this rank's verdict with local; else settle's, the reduction still pending)
     accepted = .true.
+    if (this%local) accepted = this%all
   end subroutine verlet_accept_step
 
   !> Whether a step from t whose end the driver numbers t_next may run the next step's first
@@ -170,6 +175,10 @@ contains
     class(verlet_t), intent(inout) :: this
     call complete(this)
     this%mine = this%first_bad == 0 .and. this%all
+    if (this%local) then
+      this%all = this%mine
+      return
+    end if
     call MPI_Iallreduce(this%mine, this%all, 1, MPI_LOGICAL, MPI_LAND, this%comm, this%req)
     this%pending = .true.
   end subroutine vote
@@ -219,6 +228,20 @@ contains
     end do
     this%h = 0.0_wp
   end subroutine verlet_rejected
+
+  !> After a rejected step with local: the verdict cleared, and every value of the state and
+  !> the rates of this rank's owned nodes that is not finite set to 0, so that the rank goes on
+  !> stepping on finite values (they are thrown away: the driver steps again to the rejected
+  !> step).
+  subroutine verlet_carry_on(this, st)
+    class(verlet_t), intent(inout) :: this
+    type(state_t), intent(inout) :: st
+    where (.not. ieee_is_finite(st%y)) st%y = 0.0_wp
+    where (.not. ieee_is_finite(st%acc)) st%acc = 0.0_wp
+    this%first_bad = 0
+    this%mine = .true.
+    this%all = .true.
+  end subroutine verlet_carry_on
 
   !> After settle rejected the step that ended at t, when its pass ran ahead into the next
   !> step: each node that pass moved on (finite velocities) back to the step's end, to the

@@ -7,6 +7,10 @@ figure, quoted in docs/stability.md):
   incompressible  plane strain nu = 0.49 and 0.499: dynamic run at the automatic step stays
                   bounded; static cantilever deflection of both cells against the reference
   aspect          cells 1:10 and 10:1: the automatic step is stable (energy balance bounded)
+  agreement       2 ranks agree on a non-finite step only at the steps that read the state;
+                  a diverging run steps again from its origin checkpoint: the same stop and
+                  last frame as 1 rank (from step 0, a periodic checkpoint, a continued run,
+                  across a repartitioning)
   dt_limit        dt at 0.99 of the limit for 1e5 steps: bounded energy; 1.05 x refused up
                   front; with allow_unstable_dt the divergence is caught within a few steps
   shock           step load (undamped and capped damping), ramped load, moving support, and
@@ -261,6 +265,86 @@ def cmd_dt_limit(args) -> None:
                    for a, b in zip(last["verlet"], last["verlet_ahead"]))
         rg.check(diff <= 1e-12, f"verlet, the step before the rejected one run ahead and taken "
                                 f"back: last frame within {diff:.1e} (<= 1e-12) of the plain run's")
+
+
+def last_frame(out: Path):
+    """The step and (displacement, velocity) of the last frame of an output file."""
+    with h5py.File(out, "r") as f:
+        frames = sorted(k for k in f["frames"] if k.startswith("frame_"))
+        g = f[f"frames/{frames[-1]}"]
+        return int(g.attrs["step"]), [g[d][:] for d in ("displacement", "velocity")]
+
+
+def cmd_agreement(args) -> None:
+    """On more than one rank each step's verdict stays on its rank: the ranks agree on the
+    first non-finite step only at the steps that read the state, and a run that diverged steps
+    again from its origin checkpoint (written at step 0, its last periodic one, or the one it
+    continues from) to the step before the failed one. What it reports and writes must be what
+    one rank does (its verdict is the run's at every step): the same step and node, and the
+    last frame bit for bit; a run that ends normally leaves no checkpoint of that making."""
+    small = dict(L=0.2, h=0.02, nx=20, ny=2)
+    p, out = run_scene(args, "agree_probe", "t_end = 1.0e-5", CLAMP_TIP.format(tf=""), **small)
+    if p is None:
+        return
+    origin = [l for l in p.stdout.splitlines() if "checkpoint at step 0 for the guard" in l]
+    rg.check(not out.with_suffix(".chk").exists() and len(origin) == 1,
+             f"2 ranks, a run that ends normally: its step-0 checkpoint reported ({origin[:1]}) "
+             f"and removed")
+    limit = float(p.stdout.split(" of the RK4 limit ")[1].split()[0])
+    cases = {"rk4": ("rk4", ""), "verlet_ahead": ("verlet", ", check_interval = 7"),
+             "rk4_checkpoint": ("rk4", f", checkpoint_interval = {60 * 1.5 * limit:.6e}"),
+             "verlet_checkpoint": ("verlet", f", checkpoint_interval = {60 * 1.5 * limit:.6e}"),
+             "rk4_repartition": ("rk4", ", repartition_step = 40"),
+             "rk4_late_checkpoint": ("rk4", f", checkpoint_interval = {200 * 1.5 * limit:.6e}")}
+    # (across a repartitioning RK4: velocity Verlet's last good velocities are v - h a, to the
+    # round-off of the kick, and the repartitioned ranks' passes round a supported node's 0
+    # differently, with a per-step agreement too)
+    for case, (integ, extra) in cases.items():
+        lim = limit if integ == "rk4" else limit / math.sqrt(2.0)
+        run = (f"t_end = 1.0e-2, dt = {1.5 * lim:.9e}, allow_unstable_dt = .true., integrator = "
+               f"'{integ}', history_interval = 1.0e-2, output_interval = 1.0e-2{extra}")
+        got = {}
+        for ranks in (1, 2):
+            p, out = run_scene(args, f"agree_{case}_{ranks}", run, CLAMP_TIP.format(tf=""),
+                               expect_ok=False, ranks=ranks, **small)
+            errs = [l for l in p.stderr.splitlines() if l.startswith("iem: error")]
+            where = errs[0].split(" on rank ")[0] if len(errs) == 1 else f"{len(errs)} errors"
+            again = [l for l in p.stdout.splitlines() if "stepping again from" in l]
+            got[ranks] = (p.returncode, where, last_frame(out) if out.exists() else None, again,
+                          out)
+        (rc1, w1, f1, _, _), (rc2, w2, f2, again, out2) = got[1], got[2]
+        same = (f1 is not None and f2 is not None and f1[0] == f2[0] and
+                all(np.array_equal(a, b) for a, b in zip(f1[1], f2[1])))
+        # (before its first checkpoint a run with a checkpoint interval agrees every step)
+        late = case == "rk4_late_checkpoint"
+        rg.check(rc1 == 3 and rc2 == 3 and "non-finite values at step" in w1 and w1 == w2 and
+                 same and len(again) == (0 if late else 1),
+                 f"{case}: 2 ranks stop as 1 rank does ({w2.split(', first')[0][-30:]}), "
+                 f"the last frame (step {f2[0] if f2 else -1}) bit for bit; {again[:1]}")
+        chk = out2.with_suffix(".chk")
+        if case.endswith("_checkpoint") and not late:
+            origin = int(again[0].split(" at step ")[1].split()[0]) if again else -1
+            rg.check(origin > 0 and chk.exists(),
+                     f"{case}: stepped again from its periodic checkpoint (step {origin}), "
+                     f"which stays")
+            # continued from that checkpoint, the run diverges the same way, stepping again
+            # from the checkpoint it continues from
+            nml = out2.parent / "case.nml"
+            nml.write_text(nml.read_text().replace(extra, ", restart = 'out.chk'"))
+            p = rg.run_iem(args, 2, nml, out2.parent)
+            errs = [l for l in p.stderr.splitlines() if l.startswith("iem: error")]
+            where = errs[0].split(" on rank ")[0] if len(errs) == 1 else ""
+            f3 = last_frame(out2)
+            rg.check(p.returncode == 3 and where == w1 and f3[0] == f1[0] and
+                     all(np.array_equal(a, b) for a, b in zip(f1[1], f3[1])) and
+                     f"stepping again from the checkpoint out.chk at step {origin}" in p.stdout,
+                     f"{case}, continued from its checkpoint: the same stop and last frame")
+        elif late:
+            rg.check(not chk.exists(), f"{case}: stopped before its first checkpoint, with an "
+                                       f"agreement every step until then (no checkpoint)")
+        else:
+            rg.check(not chk.exists() and again and " at step 0 " in again[0],
+                     f"{case}: stepped again from the checkpoint written at step 0, removed")
 
 
 CAPPED = ("&damping\n  kind = 'capped', ratio = 0.03, frequency = 52.0, cap_frequency = 520.0"
@@ -875,13 +959,15 @@ def cmd_restart_errors(args) -> None:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("case", choices=["incompressible", "aspect", "dt_limit", "shock", "spin",
-                                     "drift", "kill_rank", "restart", "restart_errors", "jobs"])
+    ap.add_argument("case", choices=["incompressible", "aspect", "dt_limit", "agreement", "shock",
+                                     "spin", "drift", "kill_rank", "restart", "restart_errors",
+                                     "jobs"])
     ap.add_argument("--iem", required=True)
     ap.add_argument("--mpiexec", required=True)
     ap.add_argument("--mpiexec-flags", default="")
     args = ap.parse_args()
     {"incompressible": cmd_incompressible, "aspect": cmd_aspect, "dt_limit": cmd_dt_limit,
+     "agreement": cmd_agreement,
      "shock": cmd_shock, "spin": cmd_spin, "drift": cmd_drift,
      "kill_rank": cmd_kill_rank, "restart": cmd_restart,
      "restart_errors": cmd_restart_errors, "jobs": cmd_jobs}[args.case](args)

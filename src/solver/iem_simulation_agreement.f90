@@ -1,0 +1,139 @@
+!> How the ranks of a run on more than one rank agree on a non-finite step without a reduction
+!> every step (docs/architecture.md, "How the ranks agree on a non-finite step"): each rank
+!> keeps its own verdict (the integrator's local), the first step it rejected, and goes on
+!> stepping on finite values; the ranks agree on the first rejected step only at the steps
+!> that read the state (a sample, a frame, a checkpoint's look, a repartitioning, the last
+!> step); a run that diverged steps again, bit for bit and without output, from its origin
+!> checkpoint to the step before the rejected one, which the ranks then reject together as on
+!> one rank (stop_rejected), so that the message and the last frame are the same.
+submodule (iem_simulation) iem_simulation_agreement
+  use mpi_f08, only: MPI_MIN, MPI_INTEGER8
+  use iem_checkpoint, only: checkpoint_read_header, checkpoint_read, checkpoint_remove, &
+                            energy_words
+  use iem_exact_sum, only: exact_sum_packed_size
+  use iem_integrator_factory, only: integrator_create
+  use iem_logger, only: log_warn
+  implicit none
+
+contains
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure agree_steps
+    integer(i8) :: first
+    stat = 0
+    msg = ''
+    call MPI_Allreduce(this%k_bad, first, 1, MPI_INTEGER8, MPI_MIN, this%comm)
+    if (first == huge(1_i8)) return
+    call replay(this, first, stat, msg)
+  end procedure agree_steps
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure note_rejected
+    this%k_bad = min(this%k_bad, k)
+    call this%integ%carry_on(this%st)
+  end procedure note_rejected
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure write_origin
+    real(wp) :: wall
+    wall = MPI_Wtime()
+    call write_checkpoint(this, 0_i8, 0.0_wp, 0, stat, msg, quiet=.true.)
+    if (stat /= 0) then
+      ! (the run goes on as before this design: the ranks agree on every step)
+      call log_warn('the checkpoint at step 0 for the guard on '//itoa(this%n_ranks)// &
+                    ' ranks was not written ('//msg//'): the ranks agree on every step instead')
+      stat = 0
+      msg = ''
+      return
+    end if
+    this%origin_only = .true.
+    call log_info('checkpoint at step 0 for the guard on '//itoa(this%n_ranks)//' ranks: '// &
+                  this%origin//' in '//rtoa(MPI_Wtime() - wall)//' s (removed at the end)')
+  end procedure write_origin
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure drop_origin
+    if (.not. this%origin_only) return
+    call checkpoint_remove(this%origin, this%comm)
+    this%origin_only = .false.
+  end procedure drop_origin
+
+  !> Some rank rejected step k_fail (the first): load the origin checkpoint (at step k0 <
+  !> k_fail), make the integrator anew with the verdict agreed every step, and step again to
+  !> k_fail without samples, frames, checkpoints or repartitioning, the driver's choices
+  !> otherwise the same (its next_plain), so that the ranks reject step k_fail together and
+  !> stop_rejected names it and writes the last good state. Collective.
+  subroutine replay(this, k_fail, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer(i8), intent(in) :: k_fail
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    type(checkpoint_header_t) :: h
+    type(field_registry_t), target :: reg
+    real(wp) :: energy(energy_words), t, t_prev, w_ext, w_damp
+    character(len=:), allocatable :: why
+    integer(i8) :: k, k0
+    integer :: worst
+    logical :: accepted
+
+    msg = 'the solution diverged: non-finite values at step '//itoa(k_fail)//' on some rank'
+    call checkpoint_read_header(this%origin, this%comm, h, stat, why)
+    if (stat /= 0) then
+      stat = 3
+      msg = msg//"; the checkpoint to step again from to its last good state, '"// &
+            this%origin//"', "//why
+      return
+    end if
+    k0 = h%step
+    call log_info('step '//itoa(k_fail)//' is not finite on some rank: stepping again from '// &
+                  'the checkpoint '//this%origin//' at step '//itoa(k0)//' to write the last '// &
+                  'good state')
+    call state_to_registry(this, reg, .true., stat)
+    call MPI_Allreduce(stat, worst, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    if (worst == 0) call checkpoint_read(this%origin, this%comm, h, energy, reg, &
+                                         this%lat%owned_gids(), this%lat%cell_gids(), worst, why)
+    if (worst /= 0) then
+      call reg%free()
+      stat = 3
+      msg = msg//"; reading the checkpoint '"//this%origin//"' to step again from failed"
+      return
+    end if
+    call state_from_registry(this, reg)
+    call reg%free()
+    call this%model%w_ext_acc%unpack(int(energy(1:exact_sum_packed_size), i8))
+    call this%model%w_damp_acc%unpack(int(energy(exact_sum_packed_size + 1:), i8))
+    this%k_bad = huge(1_i8)
+    deallocate(this%integ)
+    call integrator_create(this%cfg%run%integrator, this%comm, this%integ)
+    if (k0 > 0) call this%integ%resume(this%model, this%lat, this%halo, this%st, h%t)
+    w_ext = 0.0_wp
+    w_damp = 0.0_wp
+    t_prev = real(k0 - 1, wp)*this%dt
+    do k = k0, k_fail
+      t = real(k, wp)*this%dt
+      if (mod(k, int(work_collect_steps, i8)) == 0) call this%model%collect_work(this%lat)
+      ! (what the evaluations compute as the first time: the same paths, the same bits)
+      this%model%energies_due = sample_due(this, k, t_prev, t)
+      call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, this%dt, k == 0)
+      call this%integ%settle(this%st, accepted)
+      if (.not. accepted) then
+        call stop_rejected(this, k, t, stat, msg)
+        return
+      end if
+      if (k == k_fail) exit
+      this%integ%t_next = real(k + 1, wp)*this%dt
+      this%model%energies_due = sample_due(this, k + 1, t, this%integ%t_next)
+      this%integ%next_plain = quiet_step(this, k + 1, t, this%integ%t_next)
+      this%integ%next_forces = .false.
+      if (k + 2 <= this%n_steps) this%integ%next_forces = &
+        .not. sample_due(this, k + 2, this%integ%t_next, real(k + 2, wp)*this%dt)
+      call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, w_ext, &
+                           w_damp, accepted)
+      t_prev = t
+    end do
+    stat = 3
+    msg = msg//', but stepping again from the checkpoint '//this%origin//' at step '// &
+          itoa(k0)//' did not reproduce it (a run that is not deterministic: please report '// &
+          'it); the output ends with the last frame written before'
+  end subroutine replay
+end submodule iem_simulation_agreement
