@@ -175,34 +175,14 @@ contains
                   ', t = '//rtoa(t)//' s')
   end procedure write_checkpoint
 
-  !> Restore the state of the checkpoint this run continues from: the run's checkpointed
-  !> fields registered and copied in (so the halo columns keep their values), the records of
-  !> the owned nodes and of every local cell read over them, and copied back. Collective.
+  !> Restore the state of the checkpoint this run continues from (read_state) and the run's
+  !> counters from its header. Collective.
   module procedure load_checkpoint
-    type(field_registry_t), target :: reg
-    integer(i8), allocatable :: cg(:)
-    real(wp) :: energy(energy_words)
-    integer :: worst
-    call state_to_registry(this, reg, .true., stat)
-    call MPI_Allreduce(stat, worst, 1, MPI_INTEGER, MPI_MAX, this%comm)
-    if (worst /= 0) then
-      stat = 1
-      msg = 'restart: out of memory for the registry of the fields'
-      call reg%free()
-      return
-    end if
-    cg = this%lat%cell_gids()
-    call checkpoint_read(trim(this%cfg%run%restart), this%comm, this%restart, energy, reg, &
-                         this%lat%owned_gids(), cg, stat, msg)
+    call read_state(this, trim(this%cfg%run%restart), this%restart, stat, msg)
     if (stat /= 0) then
       msg = 'restart: '//msg
-      call reg%free()
       return
     end if
-    call state_from_registry(this, reg)
-    call reg%free()
-    call this%model%w_ext_acc%unpack(int(energy(1:exact_sum_packed_size), i8))
-    call this%model%w_damp_acc%unpack(int(energy(exact_sum_packed_size + 1:), i8))
     this%e0 = this%restart%e0
     this%kick = this%restart%kick
     this%kick_step = this%restart%step
@@ -213,6 +193,33 @@ contains
     this%last_frame_time = this%restart%last_frame_time
     ! the integrator redoes what it needs of the loaded state (its resume, called next)
   end procedure load_checkpoint
+
+  !> Documented at its interface in iem_simulation.f90: the run's checkpointed fields
+  !> registered and copied in (so the halo columns keep their values), the records of the
+  !> owned nodes and of every local cell read over them, and copied back.
+  module procedure read_state
+    type(field_registry_t), target :: reg
+    real(wp) :: energy(energy_words)
+    integer :: worst
+    call state_to_registry(this, reg, .true., stat)
+    call MPI_Allreduce(stat, worst, 1, MPI_INTEGER, MPI_MAX, this%comm)
+    if (worst /= 0) then
+      stat = 1
+      msg = 'out of memory for the registry of the fields'
+      call reg%free()
+      return
+    end if
+    call checkpoint_read(path, this%comm, h, energy, reg, this%lat%owned_gids(), &
+                         this%lat%cell_gids(), stat, msg)
+    if (stat /= 0) then
+      call reg%free()
+      return
+    end if
+    call state_from_registry(this, reg)
+    call reg%free()
+    call this%model%w_ext_acc%unpack(int(energy(1:exact_sum_packed_size), i8))
+    call this%model%w_damp_acc%unpack(int(energy(exact_sum_packed_size + 1:), i8))
+  end procedure read_state
 
   !> Documented at its interface in iem_simulation.f90.
   module procedure checkpoint_looks

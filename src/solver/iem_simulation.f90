@@ -151,6 +151,17 @@ module iem_simulation
       logical, intent(in), optional :: quiet
     end subroutine write_checkpoint
 
+    !> Read the checkpoint at path (its header h) into the run's checkpointed fields (the
+    !> records by global index onto this rank's nodes and cells, the springs' and damage's
+    !> derived state refreshed) and the model's exact work accumulators. Collective.
+    module subroutine read_state(this, path, h, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      character(len=*), intent(in) :: path
+      type(checkpoint_header_t), intent(in) :: h
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine read_state
+
     !> Restore the state of the checkpoint this run continues from.
     module subroutine load_checkpoint(this, stat, msg)
       type(simulation_t), intent(inout) :: this
@@ -366,6 +377,14 @@ module iem_simulation
       integer(i8), intent(in) :: k
       real(wp), intent(in) :: t_prev, t
     end function frame_due
+
+    !> Before the step from step k (at t): say to the integrator and the model what the
+    !> schedule does at steps k + 1 and k + 2 (t_next, next_plain, next_forces, energies_due).
+    module subroutine plan_next(this, k, t)
+      type(simulation_t), intent(inout) :: this
+      integer(i8), intent(in) :: k
+      real(wp), intent(in) :: t
+    end subroutine plan_next
 
     !> Whether nothing reads the state of step k (at t; the step before it at t_prev) before
     !> step k + 1 starts from it: k is not the last step, and at k the loop of run_dynamic

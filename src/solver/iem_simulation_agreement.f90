@@ -8,9 +8,7 @@
 !> one rank (stop_rejected), so that the message and the last frame are the same.
 submodule (iem_simulation) iem_simulation_agreement
   use mpi_f08, only: MPI_MIN, MPI_INTEGER8
-  use iem_checkpoint, only: checkpoint_read_header, checkpoint_read, checkpoint_remove, &
-                            energy_words
-  use iem_exact_sum, only: exact_sum_packed_size
+  use iem_checkpoint, only: checkpoint_read_header, checkpoint_remove
   use iem_integrator_factory, only: integrator_create
   use iem_logger, only: log_warn
   implicit none
@@ -69,11 +67,9 @@ contains
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
     type(checkpoint_header_t) :: h
-    type(field_registry_t), target :: reg
-    real(wp) :: energy(energy_words), t, t_prev, w_ext, w_damp
+    real(wp) :: t, t_prev, w_ext, w_damp
     character(len=:), allocatable :: why
     integer(i8) :: k, k0
-    integer :: worst
     logical :: accepted
 
     msg = 'the solution diverged: non-finite values at step '//itoa(k_fail)//' on some rank'
@@ -88,20 +84,12 @@ contains
     call log_info('step '//itoa(k_fail)//' is not finite on some rank: stepping again from '// &
                   'the checkpoint '//this%origin//' at step '//itoa(k0)//' to write the last '// &
                   'good state')
-    call state_to_registry(this, reg, .true., stat)
-    call MPI_Allreduce(stat, worst, 1, MPI_INTEGER, MPI_MAX, this%comm)
-    if (worst == 0) call checkpoint_read(this%origin, this%comm, h, energy, reg, &
-                                         this%lat%owned_gids(), this%lat%cell_gids(), worst, why)
-    if (worst /= 0) then
-      call reg%free()
+    call read_state(this, this%origin, h, stat, why)
+    if (stat /= 0) then
       stat = 3
-      msg = msg//"; reading the checkpoint '"//this%origin//"' to step again from failed"
+      msg = msg//"; reading the checkpoint '"//this%origin//"' to step again from failed: "//why
       return
     end if
-    call state_from_registry(this, reg)
-    call reg%free()
-    call this%model%w_ext_acc%unpack(int(energy(1:exact_sum_packed_size), i8))
-    call this%model%w_damp_acc%unpack(int(energy(exact_sum_packed_size + 1:), i8))
     this%k_bad = huge(1_i8)
     deallocate(this%integ)
     call integrator_create(this%cfg%run%integrator, this%comm, this%integ)
@@ -121,12 +109,7 @@ contains
         return
       end if
       if (k == k_fail) exit
-      this%integ%t_next = real(k + 1, wp)*this%dt
-      this%model%energies_due = sample_due(this, k + 1, t, this%integ%t_next)
-      this%integ%next_plain = quiet_step(this, k + 1, t, this%integ%t_next)
-      this%integ%next_forces = .false.
-      if (k + 2 <= this%n_steps) this%integ%next_forces = &
-        .not. sample_due(this, k + 2, this%integ%t_next, real(k + 2, wp)*this%dt)
+      call plan_next(this, k, t)
       call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, w_ext, &
                            w_damp, accepted)
       t_prev = t

@@ -109,12 +109,7 @@ contains
       end if
       if (this%rank == 0) call progress(this, k, t, wall0, wall_last, next_report)
       if (k == this%n_steps) exit
-      this%integ%t_next = real(k + 1, wp)*this%dt
-      this%model%energies_due = sample_due(this, k + 1, t, this%integ%t_next)
-      this%integ%next_plain = quiet_step(this, k + 1, t, this%integ%t_next)
-      this%integ%next_forces = .false.
-      if (k + 2 <= this%n_steps) this%integ%next_forces = &
-        .not. sample_due(this, k + 2, this%integ%t_next, real(k + 2, wp)*this%dt)
+      call plan_next(this, k, t)
       call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
                            this%w_damp, accepted)
       if (.not. accepted .and. this%integ%local) then

@@ -32,4 +32,14 @@ contains
     if (quiet) quiet = .not. (sample_due(this, k, t_prev, t) .or. frame_due(this, k, t_prev, t) &
                               .or. checkpoint_looks(this, k, t_prev, t))
   end procedure quiet_step
+
+  !> Documented at its interface in iem_simulation.f90.
+  module procedure plan_next
+    this%integ%t_next = real(k + 1, wp)*this%dt
+    this%model%energies_due = sample_due(this, k + 1, t, this%integ%t_next)
+    this%integ%next_plain = quiet_step(this, k + 1, t, this%integ%t_next)
+    this%integ%next_forces = .false.
+    if (k + 2 <= this%n_steps) this%integ%next_forces = &
+      .not. sample_due(this, k + 2, this%integ%t_next, real(k + 2, wp)*this%dt)
+  end procedure plan_next
 end submodule iem_simulation_schedule
