@@ -76,7 +76,7 @@ contains
     call checkpoint_read_header(this%origin, this%comm, h, stat, why)
     if (stat /= 0) then
       stat = 3
-      msg = msg//"; the checkpoint to step again from to its last good state, '"// &
+      msg = msg//"; the checkpoint to step again from to the last good state, '"// &
             this%origin//"', "//why
       return
     end if
