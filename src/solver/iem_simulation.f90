@@ -406,12 +406,17 @@ module iem_simulation
       character(len=:), allocatable, intent(out) :: msg
     end subroutine agree_steps
 
-    !> Runs with the integrator's local: this rank rejected step k; keep the first such step
-    !> and let the integrator go on stepping on finite values until the next agreement.
-    module subroutine note_rejected(this, k)
+    !> Step k (at t) was rejected: with the integrator's local, on this rank alone, which keeps
+    !> the first such step and lets the integrator go on stepping on finite values until the
+    !> next agreement (stat = 0); else on every rank, which stop there (stop_rejected, stat =
+    !> 3).
+    module subroutine step_rejected(this, k, t, stat, msg)
       type(simulation_t), intent(inout) :: this
       integer(i8), intent(in) :: k
-    end subroutine note_rejected
+      real(wp), intent(in) :: t
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine step_rejected
 
     !> Runs on more than one rank that continue no checkpoint and write none at intervals:
     !> write one of the state at step 0 (before the time loop), the origin a diverging run

@@ -26,10 +26,16 @@ contains
   end procedure agree_steps
 
   !> Documented at its interface in iem_simulation.f90.
-  module procedure note_rejected
+  module procedure step_rejected
+    if (.not. this%integ%local) then
+      call stop_rejected(this, k, t, stat, msg)
+      return
+    end if
+    stat = 0
+    msg = ''
     this%k_bad = min(this%k_bad, k)
     call this%integ%carry_on(this%st)
-  end procedure note_rejected
+  end procedure step_rejected
 
   !> Documented at its interface in iem_simulation.f90.
   module procedure write_origin

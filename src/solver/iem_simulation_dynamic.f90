@@ -10,7 +10,7 @@ contains
   module procedure run_dynamic
     integer(i8) :: k, k_first
     real(wp) :: t, t_prev, wall0, wall_last, next_report
-    logical :: diverged, accepted, sampled
+    logical :: diverged, accepted, sampled, framed, moves
 
     call report_start(this)
     ! on more than one rank, a run that will write no checkpoint but the one a signal asks for
@@ -45,15 +45,15 @@ contains
     do k = k_first, this%n_steps
       t = real(k, wp)*this%dt
       if (k > k_first) then
+        moves = k == int(this%cfg%run%repartition_step, i8) .or. balance_due(this, k)
         ! (the ranks agree before a checkpoint, a signal's poll or a repartitioning)
-        if (this%integ%local .and. (checkpoint_looks(this, k, t_prev, t) .or. &
-            k == int(this%cfg%run%repartition_step, i8) .or. balance_due(this, k))) then
+        if (this%integ%local .and. (checkpoint_looks(this, k, t_prev, t) .or. moves)) then
           call agree_steps(this, stat, msg)
           if (stat /= 0) return
         end if
         call checkpoint_if_due(this, k, t, t_prev, stat, msg)
         if (stat /= 0) return
-        if (k == int(this%cfg%run%repartition_step, i8) .or. balance_due(this, k)) then
+        if (moves) then
           ! (the last step must stand before the state moves)
           call this%integ%settle(this%st, accepted)
           if (.not. accepted) then
@@ -77,14 +77,13 @@ contains
       call this%integ%prepare(this%model, this%lat, this%halo, this%st, t, this%dt, k == 0)
       ! the last step stands once every rank agrees (RK4 agrees behind prepare's exchange)
       call this%integ%settle(this%st, accepted)
-      if (.not. accepted .and. this%integ%local) then
-        call note_rejected(this, k)
-      else if (.not. accepted) then
-        call stop_rejected(this, k, t, stat, msg)
-        return
+      if (.not. accepted) then
+        call step_rejected(this, k, t, stat, msg)
+        if (stat /= 0) return
       end if
       ! (and before a sample or a frame reads it)
-      if (this%integ%local .and. (sampled .or. frame_due(this, k, t_prev, t))) then
+      framed = frame_due(this, k, t_prev, t)
+      if (this%integ%local .and. (sampled .or. framed)) then
         call agree_steps(this, stat, msg)
         if (stat /= 0) return
       end if
@@ -97,7 +96,7 @@ contains
         call energy_guard(this, k, t, stat, msg)
         if (stat /= 0) return
       end if
-      if (frame_due(this, k, t_prev, t)) then
+      if (framed) then
         call timer_start(t_output)
         call flush_history(this, stat)
         if (stat == 0) call write_frame(this, k, t, stat)
@@ -112,11 +111,9 @@ contains
       call plan_next(this, k, t)
       call this%integ%step(this%model, this%lat, this%halo, this%st, t, this%dt, this%w_ext, &
                            this%w_damp, accepted)
-      if (.not. accepted .and. this%integ%local) then
-        call note_rejected(this, k + 1)
-      else if (.not. accepted) then
-        call stop_rejected(this, k + 1, t + this%dt, stat, msg)
-        return
+      if (.not. accepted) then
+        call step_rejected(this, k + 1, t + this%dt, stat, msg)
+        if (stat /= 0) return
       end if
       t_prev = t
     end do
