@@ -11,6 +11,12 @@
 !> component of one). Node fields span all local nodes (owned first, then halo); cell fields
 !> span the local cells, in the local lattice's order.
 !>
+!> Borrowed fields (borrow_real, borrow_int): the values are the caller's array, which the
+!> registry reads and writes in place without a copy (a checkpoint's records packed from, and
+!> read into, the run's own arrays). The caller keeps the array allocated, unmoved and of
+!> its size while the registry holds it; operations that reallocate a centre with a borrowed
+!> field (resize, reset, permute) refuse (stat 4).
+!>
 !> Record layout: one entity's record is its fields' values in registration order (fields of
 !> the other centre skipped), each as width values of bytes_real or bytes_int bytes, packed
 !> without padding; layout() lists each field's byte offset and size in the record.
@@ -29,12 +35,16 @@ module iem_fields
   !> Bytes of one value of each kind in a record.
   integer, parameter :: bytes_real = storage_size(1.0_wp)/8, bytes_int = storage_size(1_ip)/8
 
-  !> One field and its storage (width, entities): r for reals, i for integers.
+  !> One field and its storage (width, entities): r for reals, i for integers, or, borrowed,
+  !> the caller's values rb, ib.
   type :: field_t
     character(len=:), allocatable :: name
     integer :: centre = 0, kind = 0, width = 0
     real(wp), allocatable :: r(:, :)
     integer(ip), allocatable :: i(:, :)
+    logical :: borrowed = .false.
+    real(wp), pointer, contiguous :: rb(:, :) => null()
+    integer(ip), pointer, contiguous :: ib(:, :) => null()
   end type field_t
 
   !> Place of one field in the per-entity record: name, kind, width, byte offset (0-based)
@@ -54,6 +64,9 @@ module iem_fields
     procedure :: init => registry_init
     procedure :: free => registry_free
     procedure :: add => registry_add
+    procedure :: borrow_real => registry_borrow_real
+    procedure :: borrow_int => registry_borrow_int
+    procedure :: borrowed => registry_borrowed
     procedure :: find => registry_find
     procedure :: name => registry_name
     procedure :: centre => registry_centre
@@ -118,16 +131,7 @@ contains
       stat = 2
       return
     end if
-    allocate(grown(this%n_fields + 1))
-    ! move every field's storage (its address is kept: no copy of the values)
-    do k = 1, this%n_fields
-      call move_alloc(this%f(k)%name, grown(k)%name)
-      grown(k)%centre = this%f(k)%centre
-      grown(k)%kind = this%f(k)%kind
-      grown(k)%width = this%f(k)%width
-      if (allocated(this%f(k)%r)) call move_alloc(this%f(k)%r, grown(k)%r)
-      if (allocated(this%f(k)%i)) call move_alloc(this%f(k)%i, grown(k)%i)
-    end do
+    call move_fields(this%f, grown, this%n_fields, 1)
     n = this%n_entities(centre)
     k = this%n_fields + 1
     grown(k)%name = name
@@ -143,11 +147,7 @@ contains
     end if
     if (ierr /= 0) then
       ! keep the registry as it was
-      do k = 1, this%n_fields
-        call move_alloc(grown(k)%name, this%f(k)%name)
-        if (allocated(grown(k)%r)) call move_alloc(grown(k)%r, this%f(k)%r)
-        if (allocated(grown(k)%i)) call move_alloc(grown(k)%i, this%f(k)%i)
-      end do
+      call move_fields(grown, this%f, this%n_fields, 0)
       stat = 3
       return
     end if
@@ -155,6 +155,75 @@ contains
     this%n_fields = k
     id = k
   end subroutine registry_add
+
+  !> Add a real field whose values are the caller's array a (width values of each entity, one
+  !> entity after the other: exactly width times the centre's entities), read and written in
+  !> place, not copied; id and stat as add's (stat 2 also when a has another size).
+  subroutine registry_borrow_real(this, name, centre, width, a, id, stat)
+    class(field_registry_t), intent(inout) :: this
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: centre, width
+    real(wp), intent(inout), target, contiguous :: a(:)
+    integer, intent(out) :: id, stat
+    call add_borrowed(this, name, centre, kind_real, width, size(a, kind=i8), id, stat)
+    if (stat /= 0) return
+    this%f(id)%rb(1:width, 1:this%n_entities(centre)) => a
+  end subroutine registry_borrow_real
+
+  !> borrow_real for an integer field.
+  subroutine registry_borrow_int(this, name, centre, width, a, id, stat)
+    class(field_registry_t), intent(inout) :: this
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: centre, width
+    integer(ip), intent(inout), target, contiguous :: a(:)
+    integer, intent(out) :: id, stat
+    call add_borrowed(this, name, centre, kind_int, width, size(a, kind=i8), id, stat)
+    if (stat /= 0) return
+    this%f(id)%ib(1:width, 1:this%n_entities(centre)) => a
+  end subroutine registry_borrow_int
+
+  !> Whether field id is borrowed (its values the caller's array).
+  pure logical function registry_borrowed(this, id) result(b)
+    class(field_registry_t), intent(in) :: this
+    integer, intent(in) :: id
+    b = this%f(id)%borrowed
+  end function registry_borrowed
+
+  !> The checks and the entry of a borrowed field of n values (its view set by the caller).
+  subroutine add_borrowed(this, name, centre, kind, width, n, id, stat)
+    type(field_registry_t), intent(inout) :: this
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: centre, kind, width
+    integer(i8), intent(in) :: n
+    integer, intent(out) :: id, stat
+    type(field_t), allocatable :: grown(:)
+    integer :: k
+    id = 0
+    stat = 0
+    if (.not. allocated(this%f)) allocate(this%f(0))
+    if (this%find(name) /= 0) then
+      stat = 1
+      return
+    end if
+    if (centre /= centre_node .and. centre /= centre_cell) then
+      stat = 2
+      return
+    end if
+    if (width < 1 .or. n /= int(width, i8)*this%n_entities(centre)) then
+      stat = 2
+      return
+    end if
+    call move_fields(this%f, grown, this%n_fields, 1)
+    k = this%n_fields + 1
+    grown(k)%name = name
+    grown(k)%centre = centre
+    grown(k)%kind = kind
+    grown(k)%width = width
+    grown(k)%borrowed = .true.
+    call move_alloc(grown, this%f)
+    this%n_fields = k
+    id = k
+  end subroutine add_borrowed
 
   !> Id of the field called name, 0 if none.
   pure integer function registry_find(this, name) result(id)
@@ -223,7 +292,11 @@ contains
     class(field_registry_t), intent(inout), target :: this
     integer, intent(in) :: id
     real(wp), pointer, contiguous :: p(:, :)
-    p => this%f(id)%r
+    if (this%f(id)%borrowed) then
+      p => this%f(id)%rb
+    else
+      p => this%f(id)%r
+    end if
   end function registry_real_data
 
   !> Pointer to the values (width, entities) of integer field id; valid until the registry
@@ -232,7 +305,11 @@ contains
     class(field_registry_t), intent(inout), target :: this
     integer, intent(in) :: id
     integer(ip), pointer, contiguous :: p(:, :)
-    p => this%f(id)%i
+    if (this%f(id)%borrowed) then
+      p => this%f(id)%ib
+    else
+      p => this%f(id)%i
+    end if
   end function registry_int_data
 
   !> Rank-1 pointer to the values of real field id, entity after entity (width*entities);
@@ -241,7 +318,11 @@ contains
     class(field_registry_t), intent(inout), target :: this
     integer, intent(in) :: id
     real(wp), pointer, contiguous :: p(:)
-    p(1:size(this%f(id)%r)) => this%f(id)%r
+    if (this%f(id)%borrowed) then
+      p(1:size(this%f(id)%rb)) => this%f(id)%rb
+    else
+      p(1:size(this%f(id)%r)) => this%f(id)%r
+    end if
   end function registry_real_flat
 
   !> Rank-1 pointer to the values of integer field id, entity after entity.
@@ -249,7 +330,11 @@ contains
     class(field_registry_t), intent(inout), target :: this
     integer, intent(in) :: id
     integer(ip), pointer, contiguous :: p(:)
-    p(1:size(this%f(id)%i)) => this%f(id)%i
+    if (this%f(id)%borrowed) then
+      p(1:size(this%f(id)%ib)) => this%f(id)%ib
+    else
+      p(1:size(this%f(id)%i)) => this%f(id)%i
+    end if
   end function registry_int_flat
 
   !> Bytes of one entity's record of a centre (sum over its fields of width times value size).
@@ -286,7 +371,8 @@ contains
 
   !> Change the number of entities of a centre to n, keeping the first min(n, old) entities'
   !> values and zeroing new ones. stat /= 0 when an allocation failed (fields already resized
-  !> stay resized; the registry's count is then left unchanged).
+  !> stay resized; the registry's count is then left unchanged); 4 when the centre has a
+  !> borrowed field (nothing changed).
   subroutine registry_resize(this, centre, n, stat)
     class(field_registry_t), intent(inout) :: this
     integer, intent(in) :: centre, n
@@ -300,7 +386,8 @@ contains
     call this%permute(centre, src, stat)
   end subroutine registry_resize
 
-  !> Reallocate every field of a centre for n entities, all zero (their old values dropped).
+  !> Reallocate every field of a centre for n entities, all zero (their old values dropped);
+  !> stat 4 when the centre has a borrowed field (nothing changed).
   subroutine registry_reset(this, centre, n, stat)
     class(field_registry_t), intent(inout) :: this
     integer, intent(in) :: centre, n
@@ -308,6 +395,10 @@ contains
     integer :: k, ierr
     stat = 0
     ierr = 0
+    if (lends(this, centre)) then
+      stat = 4
+      return
+    end if
     do k = 1, this%n_fields
       associate(fk => this%f(k))
         if (fk%centre /= centre) cycle
@@ -331,7 +422,8 @@ contains
 
   !> Reorder (and resize) every field of a centre: new entity e takes the values of old
   !> entity src(e), or zeros where src(e) = 0; the centre then has size(src) entities.
-  !> stat /= 0 when an allocation failed or src names an entity that does not exist.
+  !> stat /= 0 when an allocation failed or src names an entity that does not exist; 4 when
+  !> the centre has a borrowed field (nothing changed).
   subroutine registry_permute(this, centre, src, stat)
     class(field_registry_t), intent(inout) :: this
     integer, intent(in) :: centre
@@ -342,6 +434,10 @@ contains
     integer :: k, e, n, ierr
     stat = 0
     ierr = 0
+    if (lends(this, centre)) then
+      stat = 4
+      return
+    end if
     if (any(src < 0 .or. src > this%n_entities(centre))) then
       stat = 2
       return
@@ -393,7 +489,13 @@ contains
       associate(fk => this%f(k))
         if (fk%centre /= centre) cycle
         nb = field_bytes(fk)
-        if (fk%kind == kind_real) then
+        if (fk%borrowed) then
+          if (fk%kind == kind_real) then
+            rec(off + 1:off + nb) = transfer(fk%rb(:, e), 0_int8, nb)
+          else
+            rec(off + 1:off + nb) = transfer(fk%ib(:, e), 0_int8, nb)
+          end if
+        else if (fk%kind == kind_real) then
           rec(off + 1:off + nb) = transfer(fk%r(:, e), 0_int8, nb)
         else
           rec(off + 1:off + nb) = transfer(fk%i(:, e), 0_int8, nb)
@@ -414,7 +516,13 @@ contains
       associate(fk => this%f(k))
         if (fk%centre /= centre) cycle
         nb = field_bytes(fk)
-        if (fk%kind == kind_real) then
+        if (fk%borrowed) then
+          if (fk%kind == kind_real) then
+            fk%rb(:, e) = transfer(rec(off + 1:off + nb), 1.0_wp, fk%width)
+          else
+            fk%ib(:, e) = transfer(rec(off + 1:off + nb), 1_ip, fk%width)
+          end if
+        else if (fk%kind == kind_real) then
           fk%r(:, e) = transfer(rec(off + 1:off + nb), 1.0_wp, fk%width)
         else
           fk%i(:, e) = transfer(rec(off + 1:off + nb), 1_ip, fk%width)
@@ -453,6 +561,40 @@ contains
       call this%unpack_one(centre, entities(k), buf(off + 1:off + nb))
     end do
   end subroutine registry_unpack
+
+  !> Move the first n fields of from into to (allocated here with n + extra fields, from
+  !> deallocated): their storage keeps its address (no copy of the values), a borrowed field
+  !> its view.
+  subroutine move_fields(from, to, n, extra)
+    type(field_t), allocatable, intent(inout) :: from(:)
+    type(field_t), allocatable, intent(out) :: to(:)
+    integer, intent(in) :: n, extra
+    integer :: k
+    allocate(to(n + extra))
+    do k = 1, n
+      call move_alloc(from(k)%name, to(k)%name)
+      to(k)%centre = from(k)%centre
+      to(k)%kind = from(k)%kind
+      to(k)%width = from(k)%width
+      if (allocated(from(k)%r)) call move_alloc(from(k)%r, to(k)%r)
+      if (allocated(from(k)%i)) call move_alloc(from(k)%i, to(k)%i)
+      to(k)%borrowed = from(k)%borrowed
+      to(k)%rb => from(k)%rb
+      to(k)%ib => from(k)%ib
+    end do
+    deallocate(from)
+  end subroutine move_fields
+
+  !> Whether a centre has a borrowed field.
+  pure logical function lends(this, centre)
+    type(field_registry_t), intent(in) :: this
+    integer, intent(in) :: centre
+    integer :: k
+    lends = .false.
+    do k = 1, this%n_fields
+      if (this%f(k)%centre == centre .and. this%f(k)%borrowed) lends = .true.
+    end do
+  end function lends
 
   !> Bytes of one entity's values of a field.
   pure integer function field_bytes(fk) result(nb)

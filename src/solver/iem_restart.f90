@@ -140,8 +140,10 @@ contains
     h%stop_signal = sig
     h%last_sample = this%last_sample
     h%last_frame_time = this%last_frame_time
-    ! the registry comes and goes with the checkpoint: out of memory ends the run cleanly
-    call state_to_registry(this, reg, .true., stat)
+    ! the registry comes and goes with the checkpoint, the records packed from the run's own
+    ! arrays (borrowed); out of memory (the records' buffer, a field it copies) ends the run
+    ! cleanly
+    call state_to_registry(this, reg, .true., stat, borrow=.true.)
     call MPI_Allreduce(stat, worst, 1, MPI_INTEGER, MPI_MAX, this%comm)
     if (worst /= 0) then
       stat = 1
@@ -195,13 +197,14 @@ contains
   end procedure load_checkpoint
 
   !> Documented at its interface in iem_simulation.f90: the run's checkpointed fields
-  !> registered and copied in (so the halo columns keep their values), the records of the
-  !> owned nodes and of every local cell read over them, and copied back.
+  !> registered, borrowed where the run's array spans the registry's entities (else copied
+  !> in), the records of the owned nodes and of every local cell read over them (the halo
+  !> columns keep their values), and the copied ones copied back.
   module procedure read_state
     type(field_registry_t), target :: reg
     real(wp) :: energy(energy_words)
     integer :: worst
-    call state_to_registry(this, reg, .true., stat)
+    call state_to_registry(this, reg, .true., stat, borrow=.true.)
     call MPI_Allreduce(stat, worst, 1, MPI_INTEGER, MPI_MAX, this%comm)
     if (worst /= 0) then
       stat = 1

@@ -142,7 +142,8 @@ module iem_simulation
     !> Write a checkpoint of the state at the top of step k (sig: the signal the run stops on;
     !> quiet: not logged); it becomes the run's origin.
     module subroutine write_checkpoint(this, k, t, sig, stat, msg, quiet)
-      type(simulation_t), intent(inout) :: this
+      ! (target: its registry borrows the run's arrays)
+      type(simulation_t), intent(inout), target :: this
       integer(i8), intent(in) :: k
       real(wp), intent(in) :: t
       integer, intent(in) :: sig
@@ -155,7 +156,8 @@ module iem_simulation
     !> records by global index onto this rank's nodes and cells, the springs' and damage's
     !> derived state refreshed) and the model's exact work accumulators. Collective.
     module subroutine read_state(this, path, h, stat, msg)
-      type(simulation_t), intent(inout) :: this
+      ! (target: its registry borrows the run's arrays)
+      type(simulation_t), intent(inout), target :: this
       character(len=*), intent(in) :: path
       type(checkpoint_header_t), intent(in) :: h
       integer, intent(out) :: stat
@@ -190,12 +192,16 @@ module iem_simulation
 
     !> Register the run's per-node and per-cell state (the one list, iem_simulation_fields)
     !> in reg for this rank's nodes and cells, all of it or, with checkpoint, what a
-    !> checkpoint holds, and copy it in. stat /= 0 when a field could not be added (memory).
-    module subroutine state_to_registry(this, reg, checkpoint, stat)
-      type(simulation_t), intent(inout) :: this
+    !> checkpoint holds, and copy it in; with borrow, reg borrows the run's arrays that span
+    !> its entities instead of copying them (reg must then go before they change size or
+    !> move: no resize, reset, permute or migration). stat /= 0 when a field could not be
+    !> added (memory).
+    module subroutine state_to_registry(this, reg, checkpoint, stat, borrow)
+      type(simulation_t), intent(inout), target :: this
       type(field_registry_t), intent(inout), target :: reg
       logical, intent(in) :: checkpoint
       integer, intent(out) :: stat
+      logical, intent(in), optional :: borrow
     end subroutine state_to_registry
 
     !> Copy the fields reg holds back into the run's arrays (sized for reg's entities; a node

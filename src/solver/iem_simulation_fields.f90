@@ -1,26 +1,36 @@
 !> The run's per-node and per-cell state as fields of a registry (iem_fields), listed once in
 !> each_field below: the checkpoint (iem_restart) and the repartitioning
 !> (iem_simulation_repartition) register it, copy it in, move or write the registry's
-!> records, and copy it back. A field added to the list (e.g. the springs' failure flags) is
-!> checkpointed (when flagged so) and migrated with no other change.
+!> records, and copy it back; a checkpoint's registry borrows the run's arrays instead (no
+!> copy: the records are packed from them and read into them). A field added to the list
+!> (e.g. the springs' failure flags) is checkpointed (when flagged so) and migrated with no
+!> other change.
 submodule (iem_simulation) iem_simulation_fields
   use iem_fields, only: centre_node, centre_cell, kind_real, kind_int
   use iem_nonlinear_springs, only: springs_per_cell
-  use iem_kinds, only: ip
+  use iem_kinds, only: ip, i8
   implicit none
 
   !> What each_field does with each field of the list: add it to the registry, copy the
-  !> run's array into it, or copy it back into the run's array.
-  integer, parameter :: op_register = 1, op_in = 2, op_out = 3
+  !> run's array into it, copy it back into the run's array, or add it as the run's array
+  !> itself (borrowed; added and copied in where the array does not span the entities).
+  integer, parameter :: op_register = 1, op_in = 2, op_out = 3, op_borrow = 4
 
 contains
 
   !> Documented at its interface in iem_simulation.f90.
   module procedure state_to_registry
+    logical :: lend
     call reg%init(this%lat%n_local, this%lat%n_cells)
     stat = 0
-    call each_field(this, reg, op_register, checkpoint, stat)
-    if (stat == 0) call each_field(this, reg, op_in, checkpoint, stat)
+    lend = .false.
+    if (present(borrow)) lend = borrow
+    if (lend) then
+      call each_field(this, reg, op_borrow, checkpoint, stat)
+    else
+      call each_field(this, reg, op_register, checkpoint, stat)
+      if (stat == 0) call each_field(this, reg, op_in, checkpoint, stat)
+    end if
   end procedure state_to_registry
 
   !> Documented at its interface in iem_simulation.f90.
@@ -45,11 +55,12 @@ contains
   !> array has n_local or n_owned columns, a cell field's one value set per local cell, so
   !> the springs' arrays, 12 springs a cell, are cell fields of width 12 or 12*depth) and
   !> whether a checkpoint holds it. op_register adds the fields (only the checkpointed ones
-  !> when checkpoint); op_in and op_out copy the fields that reg holds in and out.
+  !> when checkpoint); op_in and op_out copy the fields that reg holds in and out (op_out
+  !> leaves a borrowed one, the run's array itself); op_borrow adds them borrowed where it can.
   !> Not a field: the strain energy of the last evaluation, an exact sum of the cells' energies
   !> that the model keeps per rank (model_t's en_sum; the integrator's resume recomputes it).
   subroutine each_field(this, reg, op, checkpoint, stat)
-    type(simulation_t), intent(inout) :: this
+    type(simulation_t), intent(inout), target :: this
     type(field_registry_t), intent(inout), target :: reg
     integer, intent(in) :: op
     logical, intent(in) :: checkpoint
@@ -94,15 +105,15 @@ contains
       real(wp), pointer, contiguous :: p(:)
       integer :: id, q
       if (stat /= 0) return
-      if (op == op_register) then
+      if (op == op_register .or. op == op_borrow) then
         call reg%add('reaction', centre_node, kind_real, 2, id, stat)
-        return
+        if (op == op_register .or. stat /= 0) return
       end if
       id = reg%find('reaction')
       if (id == 0 .or. .not. allocated(this%model%r_bc)) return
       p => reg%real_flat(id)
       associate(m => this%model)
-        if (op == op_in) then
+        if (op /= op_out) then
           p = 0.0_wp
           do q = 1, size(m%bc_node)
             p(m%bc_comp(q) + 2*(m%bc_node(q) - 1)) = m%r_bc(q)
@@ -116,32 +127,46 @@ contains
     end subroutine reaction_field
 
     !> Register, copy in or copy out one real field whose run's array is a (rank 1 or 2; not
-    !> referenced when registering, so it may be unallocated then).
+    !> referenced when registering, so it may be unallocated then), or register it borrowed.
     subroutine real_field(name, centre, width, a, checkpointed)
       character(len=*), intent(in) :: name
       integer, intent(in) :: centre, width
-      real(wp), allocatable, intent(inout) :: a(..)
+      real(wp), allocatable, intent(inout), target :: a(..)
       logical, intent(in) :: checkpointed
       real(wp), pointer, contiguous :: p(:)
       integer :: id
+      logical :: lend
       if (stat /= 0) return
-      if (op == op_register) then
-        if (checkpointed .or. .not. checkpoint) &
-          call reg%add(name, centre, kind_real, width, id, stat)
+      if (.not. (checkpointed .or. .not. checkpoint)) return
+      lend = .false.
+      if (op == op_borrow .and. allocated(a)) lend = spans(width, centre, size(a, kind=i8))
+      if (lend) then
+        select rank (a)
+        rank (1)
+          p => a
+        rank (2)
+          p(1:size(a)) => a
+        end select
+        call reg%borrow_real(name, centre, width, p, id, stat)
         return
+      end if
+      if (op == op_register .or. op == op_borrow) then
+        call reg%add(name, centre, kind_real, width, id, stat)
+        if (op == op_register .or. stat /= 0) return
       end if
       id = reg%find(name)
       if (id == 0 .or. .not. allocated(a)) return
+      if (reg%borrowed(id)) return
       p => reg%real_flat(id)
       select rank (a)
       rank (1)
-        if (op == op_in) then
+        if (op /= op_out) then
           p(1:size(a)) = a
         else
           a = p(1:size(a))
         end if
       rank (2)
-        if (op == op_in) then
+        if (op /= op_out) then
           ! (an array without columns, fused RK4's rates: zeros in a checkpoint)
           if (size(a) == 0) p = 0.0_wp
           p(1:size(a)) = reshape(a, [size(a)])
@@ -151,28 +176,45 @@ contains
       end select
     end subroutine real_field
 
-    !> Register, copy in or copy out one integer field whose run's array is a (rank 1).
+    !> Register, copy in or copy out one integer field whose run's array is a (rank 1), or
+    !> register it borrowed.
     subroutine int_field(name, centre, width, a, checkpointed)
       character(len=*), intent(in) :: name
       integer, intent(in) :: centre, width
-      integer(ip), allocatable, intent(inout) :: a(:)
+      integer(ip), allocatable, intent(inout), target :: a(:)
       logical, intent(in) :: checkpointed
       integer(ip), pointer, contiguous :: p(:)
       integer :: id
+      logical :: lend
       if (stat /= 0) return
-      if (op == op_register) then
-        if (checkpointed .or. .not. checkpoint) &
-          call reg%add(name, centre, kind_int, width, id, stat)
+      if (.not. (checkpointed .or. .not. checkpoint)) return
+      lend = .false.
+      if (op == op_borrow .and. allocated(a)) lend = spans(width, centre, size(a, kind=i8))
+      if (lend) then
+        call reg%borrow_int(name, centre, width, a, id, stat)
         return
+      end if
+      if (op == op_register .or. op == op_borrow) then
+        call reg%add(name, centre, kind_int, width, id, stat)
+        if (op == op_register .or. stat /= 0) return
       end if
       id = reg%find(name)
       if (id == 0 .or. .not. allocated(a)) return
+      if (reg%borrowed(id)) return
       p => reg%int_flat(id)
-      if (op == op_in) then
+      if (op /= op_out) then
         p(1:size(a)) = a
       else
         a = p(1:size(a))
       end if
     end subroutine int_field
+
+    !> Whether a run's array of n values holds width values of every entity of a centre of
+    !> reg (and so can be borrowed).
+    pure logical function spans(width, centre, n)
+      integer, intent(in) :: width, centre
+      integer(i8), intent(in) :: n
+      spans = n == int(width, i8)*reg%n_of(centre)
+    end function spans
   end subroutine each_field
 end submodule iem_simulation_fields
