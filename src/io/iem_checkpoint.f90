@@ -35,7 +35,7 @@ module iem_checkpoint
   private
   public :: checkpoint_header_t, checkpoint_write, checkpoint_read_header, checkpoint_verify
   public :: checkpoint_read, checkpoint_magic, checkpoint_version, word_hash
-  public :: checkpoint_layout, checkpoint_check_layout, energy_words, checkpoint_remove
+  public :: checkpoint_layout, checkpoint_check_layout, energy_words
 
   !> Bytes of the buffer through which records are written and read (at least one record).
   integer(i8), parameter :: chunk_bytes = 2_i8**24
@@ -46,11 +46,6 @@ module iem_checkpoint
       character(kind=c_char), intent(in) :: old(*), new(*)
       integer(c_int) :: r
     end function c_rename
-    function c_remove(path) bind(C, name='remove') result(r)
-      import :: c_int, c_char
-      character(kind=c_char), intent(in) :: path(*)
-      integer(c_int) :: r
-    end function c_remove
   end interface
 
 contains
@@ -185,19 +180,6 @@ contains
       end if
     end subroutine agree
   end subroutine checkpoint_write
-
-  !> Remove the checkpoint at path (rank 0, once every rank is past it; a missing file is no
-  !> error). Collective.
-  subroutine checkpoint_remove(path, comm)
-    character(len=*), intent(in) :: path
-    type(MPI_Comm), intent(in) :: comm
-    integer :: rank
-    integer(c_int) :: r
-    call MPI_Barrier(comm)
-    call MPI_Comm_rank(comm, rank)
-    if (rank == 0) r = c_remove(path//c_null_char)
-    call MPI_Barrier(comm)
-  end subroutine checkpoint_remove
 
   !> Read the records of the global nodes node_gids into reg's node entities 1, 2, ... and
   !> those of the global cells cell_gids into its cell entities 1, 2, ... (both lists

@@ -165,14 +165,8 @@ contains
                           this%lat%owned_gids(), cells, cg, stat, msg)
     call reg%free()
     if (stat /= 0) return
-    ! the state a diverging run on more than one rank steps again from: from here on each
-    ! step's verdict stays on its rank (the last one stands: the caller settled it)
-    this%origin = trim(this%cfg%run%checkpoint_file)
-    this%origin_only = .false.
-    this%integ%local = this%n_ranks > 1
-    if (present(quiet)) then
-      if (quiet) return
-    end if
+    ! the state a diverging run on more than one rank steps again from
+    if (this%n_ranks > 1) this%origin = trim(this%cfg%run%checkpoint_file)
     call log_info('checkpoint: '//trim(this%cfg%run%checkpoint_file)//' at step '//itoa(k)// &
                   ', t = '//rtoa(t)//' s')
   end procedure write_checkpoint

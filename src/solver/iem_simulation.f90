@@ -113,14 +113,12 @@ module iem_simulation
     !> The last history sample written (time and the five energies) and the time of the last
     !> frame: a checkpoint records them to recognise its output on a restart.
     real(wp) :: last_sample(7) = 0.0_wp, last_frame_time = 0.0_wp
-    !> Runs on more than one rank once they have an origin (the integrator's local): this
-    !> rank's first rejected step since the last agreement (huge: none); the origin, the
-    !> checkpoint a diverging run steps again from (the last one this run wrote, or the one it
-    !> continues from), and whether it is the one written at step 0 for that alone (removed at
-    !> the end).
+    !> Dynamic runs on more than one rank (the integrator's local): this rank's first rejected
+    !> step since the last agreement (huge: none); the origin, the state a diverging run steps
+    !> again from: the checkpoint this run wrote last, or the one it continues from, or, empty,
+    !> the initial state (a run from step 0 before its first checkpoint).
     integer(i8) :: k_bad = huge(1_i8)
     character(len=:), allocatable :: origin
-    logical :: origin_only = .false.
     !> Load balancing: this rank's computing seconds (force evaluation and state updates) at
     !> the last look.
     real(wp) :: balance_mark = 0.0_wp
@@ -139,9 +137,9 @@ module iem_simulation
       character(len=:), allocatable, intent(out) :: msg
     end subroutine check_restart
 
-    !> Write a checkpoint of the state at the top of step k (sig: the signal the run stops on;
-    !> quiet: not logged); it becomes the run's origin.
-    module subroutine write_checkpoint(this, k, t, sig, stat, msg, quiet)
+    !> Write a checkpoint of the state at the top of step k (sig: the signal the run stops
+    !> on); it becomes the run's origin.
+    module subroutine write_checkpoint(this, k, t, sig, stat, msg)
       ! (target: its registry borrows the run's arrays)
       type(simulation_t), intent(inout), target :: this
       integer(i8), intent(in) :: k
@@ -149,7 +147,6 @@ module iem_simulation
       integer, intent(in) :: sig
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
-      logical, intent(in), optional :: quiet
     end subroutine write_checkpoint
 
     !> Read the checkpoint at path (its header h) into the run's checkpointed fields (the
@@ -237,6 +234,14 @@ module iem_simulation
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
     end subroutine simulation_setup
+
+    !> Allocate the state (with the work arrays the integrator needs), all ranks agreeing; set
+    !> the initial state (its velocities, the prescribed dofs at t = 0).
+    module subroutine allocate_state(this, stat, msg)
+      type(simulation_t), intent(inout) :: this
+      integer, intent(out) :: stat
+      character(len=:), allocatable, intent(out) :: msg
+    end subroutine allocate_state
 
     !> The initial velocity field of &initial: uniform velocity plus a rigid spin (the filtered
     !> velocity of capped damping starts equal to it).
@@ -405,7 +410,7 @@ module iem_simulation
 
     !> Runs with the integrator's local: agree over the ranks on the first step rejected since
     !> the last agreement (before anything reads the state); with one, step again from the
-    !> origin checkpoint to it and stop there as stop_rejected does (stat = 3). Collective.
+    !> origin to it and stop there as stop_rejected does (stat = 3). Collective.
     module subroutine agree_steps(this, stat, msg)
       type(simulation_t), intent(inout) :: this
       integer, intent(out) :: stat
@@ -423,21 +428,6 @@ module iem_simulation
       integer, intent(out) :: stat
       character(len=:), allocatable, intent(out) :: msg
     end subroutine step_rejected
-
-    !> Runs on more than one rank that continue no checkpoint and write none at intervals:
-    !> write one of the state at step 0 (before the time loop), the origin a diverging run
-    !> steps again from, with which each step's verdict stays on its rank; when it cannot be
-    !> written, warn (the ranks then agree on every step). Collective.
-    module subroutine write_origin(this, stat, msg)
-      type(simulation_t), intent(inout) :: this
-      integer, intent(out) :: stat
-      character(len=:), allocatable, intent(out) :: msg
-    end subroutine write_origin
-
-    !> Remove the origin checkpoint when it was written for that alone. Collective.
-    module subroutine drop_origin(this)
-      type(simulation_t), intent(inout) :: this
-    end subroutine drop_origin
 
     !> Energy guard after a history sample: warn once above energy_warn, stop above
     !> energy_stop, naming the node with the largest speed (where a divergence grows fastest)
@@ -506,27 +496,7 @@ contains
     call restore_underflow(gradual)
   end subroutine simulation_run
 
-  !> Allocate the state (with the work arrays the integrator needs), all ranks agreeing; set
-  !> the initial state. Only now, after the mesh output's temporaries are gone, so that they do
-  !> not add to the peak memory.
-  subroutine allocate_state(this, stat, msg)
-    type(simulation_t), intent(inout) :: this
-    integer, intent(out) :: stat
-    character(len=:), allocatable, intent(out) :: msg
-    type(alloc_guard_t) :: guard
-    logical :: work
-    work = .false.
-    if (.not. this%static) work = this%integ%work_arrays()
-    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
-                      rk4_work=work, guard=guard, n_rates=this%model%rate_columns(this%lat, work))
-    call guard%agree(this%comm, this%grid%label(), stat, msg)
-    if (stat /= 0) return
-    if (.not. this%static) call initial_velocity(this)
-    call this%model%prescribe(this%st%y, 0.0_wp)
-  end subroutine allocate_state
-
-  !> Close the output (marking it complete when the run ended normally); remove the origin
-  !> checkpoint written for a diverging run alone.
+  !> Close the output (marking it complete when the run ended normally).
   subroutine simulation_finish(this, complete, stat, msg)
     class(simulation_t), intent(inout) :: this
     logical, intent(in) :: complete
@@ -534,7 +504,6 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     stat = 0
     msg = ''
-    call drop_origin(this)
     if (this%output_open) then
       call this%out%close(complete, stat, msg)
       this%output_open = .false.

@@ -4,13 +4,13 @@
 !> stepping on finite values; the ranks agree on the first rejected step only at the steps
 !> that read the state (a sample, a frame, a checkpoint's look, a repartitioning, the last
 !> step); a run that diverged steps again, bit for bit and without output, from its origin
-!> checkpoint to the step before the rejected one, which the ranks then reject together as on
-!> one rank (stop_rejected), so that the message and the last frame are the same.
+!> (its last checkpoint, or the initial state) to the step before the rejected one, which the
+!> ranks then reject together as on one rank (stop_rejected), so that the message and the
+!> last frame are the same.
 submodule (iem_simulation) iem_simulation_agreement
   use mpi_f08, only: MPI_MIN, MPI_INTEGER8
-  use iem_checkpoint, only: checkpoint_read_header, checkpoint_remove
+  use iem_checkpoint, only: checkpoint_read_header
   use iem_integrator_factory, only: integrator_create
-  use iem_logger, only: log_warn
   implicit none
 
 contains
@@ -37,36 +37,12 @@ contains
     call this%integ%carry_on(this%st)
   end procedure step_rejected
 
-  !> Documented at its interface in iem_simulation.f90.
-  module procedure write_origin
-    real(wp) :: wall
-    wall = MPI_Wtime()
-    call write_checkpoint(this, 0_i8, 0.0_wp, 0, stat, msg, quiet=.true.)
-    if (stat /= 0) then
-      ! (the run goes on as before this design: the ranks agree on every step)
-      call log_warn('the checkpoint at step 0 for the guard on '//itoa(this%n_ranks)// &
-                    ' ranks was not written ('//msg//'): the ranks agree on every step instead')
-      stat = 0
-      msg = ''
-      return
-    end if
-    this%origin_only = .true.
-    call log_info('checkpoint at step 0 for the guard on '//itoa(this%n_ranks)//' ranks: '// &
-                  this%origin//' in '//rtoa(MPI_Wtime() - wall)//' s (removed at the end)')
-  end procedure write_origin
-
-  !> Documented at its interface in iem_simulation.f90.
-  module procedure drop_origin
-    if (.not. this%origin_only) return
-    call checkpoint_remove(this%origin, this%comm)
-    this%origin_only = .false.
-  end procedure drop_origin
-
-  !> Some rank rejected step k_fail (the first): load the origin checkpoint (at step k0 <
-  !> k_fail), make the integrator anew with the verdict agreed every step, and step again to
-  !> k_fail without samples, frames, checkpoints or repartitioning, the driver's choices
-  !> otherwise the same (its next_plain), so that the ranks reject step k_fail together and
-  !> stop_rejected names it and writes the last good state. Collective.
+  !> Some rank rejected step k_fail (the first): load the origin (a checkpoint at step k0 <
+  !> k_fail, or the initial state, k0 = 0), make the integrator anew with the verdict agreed
+  !> every step, and step again to k_fail without samples, frames, checkpoints or
+  !> repartitioning, the driver's choices otherwise the same (its next_plain), so that the
+  !> ranks reject step k_fail together and stop_rejected names it and writes the last good
+  !> state. Collective.
   subroutine replay(this, k_fail, stat, msg)
     type(simulation_t), intent(inout) :: this
     integer(i8), intent(in) :: k_fail
@@ -74,27 +50,41 @@ contains
     character(len=:), allocatable, intent(out) :: msg
     type(checkpoint_header_t) :: h
     real(wp) :: t, t_prev, w_ext, w_damp
-    character(len=:), allocatable :: why
+    character(len=:), allocatable :: why, from
     integer(i8) :: k, k0
     logical :: accepted
 
     msg = 'the solution diverged: non-finite values at step '//itoa(k_fail)//' on some rank'
-    call checkpoint_read_header(this%origin, this%comm, h, stat, why)
-    if (stat /= 0) then
-      stat = 3
-      msg = msg//"; the checkpoint to step again from to the last good state, '"// &
-            this%origin//"', "//why
-      return
-    end if
-    k0 = h%step
-    call log_info('step '//itoa(k_fail)//' is not finite on some rank: stepping again from '// &
-                  'the checkpoint '//this%origin//' at step '//itoa(k0)//' to write the last '// &
-                  'good state')
-    call read_state(this, this%origin, h, stat, why)
-    if (stat /= 0) then
-      stat = 3
-      msg = msg//"; reading the checkpoint '"//this%origin//"' to step again from failed: "//why
-      return
+    if (len(this%origin) == 0) then
+      k0 = 0
+      from = 'the initial state'
+      call log_info('step '//itoa(k_fail)//' is not finite on some rank: stepping again '// &
+                    'from the initial state to write the last good state')
+      call initial_state(this, stat, why)
+      if (stat /= 0) then
+        stat = 3
+        msg = msg//'; making the initial state again to step again from failed: '//why
+        return
+      end if
+    else
+      call checkpoint_read_header(this%origin, this%comm, h, stat, why)
+      if (stat /= 0) then
+        stat = 3
+        msg = msg//"; the checkpoint to step again from to the last good state, '"// &
+              this%origin//"', "//why
+        return
+      end if
+      k0 = h%step
+      from = 'the checkpoint '//this%origin//' at step '//itoa(k0)
+      call log_info('step '//itoa(k_fail)//' is not finite on some rank: stepping again '// &
+                    'from '//from//' to write the last good state')
+      call read_state(this, this%origin, h, stat, why)
+      if (stat /= 0) then
+        stat = 3
+        msg = msg//"; reading the checkpoint '"//this%origin//"' to step again from failed: "// &
+              why
+        return
+      end if
     end if
     this%k_bad = huge(1_i8)
     deallocate(this%integ)
@@ -121,8 +111,26 @@ contains
       t_prev = t
     end do
     stat = 3
-    msg = msg//', but stepping again from the checkpoint '//this%origin//' at step '// &
-          itoa(k0)//' did not reproduce it (a run that is not deterministic: please report '// &
-          'it); the output ends with the last frame written before'
+    msg = msg//', but stepping again from '//from//' did not reproduce it (a run that is '// &
+          'not deterministic: please report it); the output ends with the last frame '// &
+          'written before'
   end subroutine replay
+
+  !> The model and the state made again as the set-up and the start of the run made them
+  !> (model%init, allocate_state), on the present lattice: the initial state is the
+  !> configuration's, whatever the partition, and every evolving value (the springs' history,
+  !> the damage, the work done) starts from it as at step 0. Collective.
+  subroutine initial_state(this, stat, msg)
+    type(simulation_t), intent(inout) :: this
+    integer, intent(out) :: stat
+    character(len=:), allocatable, intent(out) :: msg
+    type(alloc_guard_t) :: guard
+    integer(i8), allocatable :: n_selected(:)
+    allocate(n_selected(size(this%cfg%bcs) + size(this%cfg%loads)))
+    this%model = model_t()
+    call this%model%init(this%cfg, this%body, this%lat, n_selected, guard)
+    call guard%agree(this%comm, this%grid%label(), stat, msg)
+    if (stat /= 0) return
+    call allocate_state(this, stat, msg)
+  end subroutine initial_state
 end submodule iem_simulation_agreement

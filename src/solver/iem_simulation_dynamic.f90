@@ -13,14 +13,10 @@ contains
     logical :: diverged, accepted, sampled, framed, moves
 
     call report_start(this)
-    ! on more than one rank, a run that will write no checkpoint but the one a signal asks for
-    ! writes its origin now, before the time loop (docs/architecture.md, "How the ranks agree
-    ! on a non-finite step")
-    if (this%n_ranks > 1 .and. this%restart%step <= 0 .and. &
-        this%cfg%run%checkpoint_interval <= 0.0_wp) then
-      call write_origin(this, stat, msg)
-      if (stat /= 0) return
-    end if
+    ! on more than one rank, a diverging run steps again from its origin: the initial state
+    ! until a checkpoint is written (docs/architecture.md, "How the ranks agree on a
+    ! non-finite step")
+    if (this%n_ranks > 1) this%origin = ''
     wall0 = MPI_Wtime()
     wall_last = wall0
     next_report = 0.1_wp
@@ -39,8 +35,7 @@ contains
       call log_info('continuing from '//trim(this%cfg%run%restart)//' at step '// &
                     itoa(k_first)//', t = '//rtoa(real(k_first, wp)*this%dt)//' s')
     end if
-    ! once there is an origin each step's verdict stays on its rank (until then, and on one
-    ! rank, the ranks agree on every step)
+    ! each step's verdict stays on its rank (one rank needs no agreement)
     this%integ%local = this%n_ranks > 1 .and. allocated(this%origin)
     do k = k_first, this%n_steps
       t = real(k, wp)*this%dt

@@ -351,6 +351,21 @@ contains
     end select
   end subroutine report_pieces
 
+  !> Documented at its interface in iem_simulation.f90: called once the mesh output's
+  !> temporaries are gone, so that they do not add to the peak memory.
+  module procedure allocate_state
+    type(alloc_guard_t) :: guard
+    logical :: work
+    work = .false.
+    if (.not. this%static) work = this%integ%work_arrays()
+    call this%st%init(this%lat%n_owned, this%lat%n_local, this%model%n_state, &
+                      rk4_work=work, guard=guard, n_rates=this%model%rate_columns(this%lat, work))
+    call guard%agree(this%comm, this%grid%label(), stat, msg)
+    if (stat /= 0) return
+    if (.not. this%static) call initial_velocity(this)
+    call this%model%prescribe(this%st%y, 0.0_wp)
+  end procedure allocate_state
+
   !> Documented at its interface in iem_simulation.f90.
   module procedure initial_velocity
     integer :: l
