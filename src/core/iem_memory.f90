@@ -116,14 +116,11 @@ contains
     ! reactions of every node, the springs' history of every cell) into a buffer (at most
     ! 16 MB: counted per node, which is the case up to about 3e5 nodes a rank and errs high
     ! beyond) with the runs' lengths and offsets of the file view (12 bytes a record) and the
-    ! counted cells' numbers, from the run's own arrays (its registry borrows them) but for
-    ! the reactions (2 values a node) and fused RK4's rates (zeros, ns - 2 values a node),
-    ! which it copies
+    ! counted cells' numbers, from the run's own arrays (its registry borrows them; fused
+    ! RK4's rates are zeros) but for the reactions (2 values a node), which it copies
     ckpt = 0.0_wp
     if (trim(mc%integrator) /= 'static') then
       ckpt = 8.0_wp*2.0_wp*ns + 16.0_wp + 12.0_wp + 8.0_wp*cells_per_node
-      if (trim(mc%integrator) /= 'verlet' .and. mc%n_state == 4) &
-        ckpt = ckpt + 8.0_wp*(ns - 2.0_wp)
       if (mc%mass_damping) ckpt = ckpt + 8.0_wp
       if (mc%stiffness_damping) ckpt = ckpt + 8.0_wp*cells_per_node
       if (mc%nonlinear) ckpt = ckpt + &

@@ -15,7 +15,9 @@
 !> registry reads and writes in place without a copy (a checkpoint's records packed from, and
 !> read into, the run's own arrays). The caller keeps the array allocated, unmoved and of
 !> its size while the registry holds it; operations that reallocate a centre with a borrowed
-!> field (resize, reset, permute) refuse (stat 4).
+!> field (resize, reset, permute) refuse (stat 4). Zero fields (add_zeros): zeros in every
+!> record, no storage, what is unpacked into them dropped. owns(id) tells which fields hold
+!> their values in the registry.
 !>
 !> Record layout: one entity's record is its fields' values in registration order (fields of
 !> the other centre skipped), each as width values of bytes_real or bytes_int bytes, packed
@@ -36,13 +38,13 @@ module iem_fields
   integer, parameter :: bytes_real = storage_size(1.0_wp)/8, bytes_int = storage_size(1_ip)/8
 
   !> One field and its storage (width, entities): r for reals, i for integers, or, borrowed,
-  !> the caller's values rb, ib.
+  !> the caller's values rb, ib, or none (zeros).
   type :: field_t
     character(len=:), allocatable :: name
     integer :: centre = 0, kind = 0, width = 0
     real(wp), allocatable :: r(:, :)
     integer(ip), allocatable :: i(:, :)
-    logical :: borrowed = .false.
+    logical :: borrowed = .false., zeros = .false.
     real(wp), pointer, contiguous :: rb(:, :) => null()
     integer(ip), pointer, contiguous :: ib(:, :) => null()
   end type field_t
@@ -66,7 +68,8 @@ module iem_fields
     procedure :: add => registry_add
     procedure :: borrow_real => registry_borrow_real
     procedure :: borrow_int => registry_borrow_int
-    procedure :: borrowed => registry_borrowed
+    procedure :: add_zeros => registry_add_zeros
+    procedure :: owns => registry_owns
     procedure :: find => registry_find
     procedure :: name => registry_name
     procedure :: centre => registry_centre
@@ -116,44 +119,28 @@ contains
     character(len=*), intent(in) :: name
     integer, intent(in) :: centre, kind, width
     integer, intent(out) :: id, stat
-    type(field_t), allocatable :: grown(:)
-    integer :: k, ierr, n
-
-    id = 0
-    stat = 0
-    if (.not. allocated(this%f)) allocate(this%f(0))
-    if (this%find(name) /= 0) then
-      stat = 1
-      return
-    end if
-    if ((centre /= centre_node .and. centre /= centre_cell) .or. width < 1 .or. &
-        (kind /= kind_real .and. kind /= kind_int)) then
-      stat = 2
-      return
-    end if
-    call move_fields(this%f, grown, this%n_fields, 1)
+    type(field_t), allocatable :: kept(:)
+    integer :: ierr, n
+    call add_entry(this, name, centre, kind, width, -1_i8, id, stat)
+    if (stat /= 0) return
     n = this%n_entities(centre)
-    k = this%n_fields + 1
-    grown(k)%name = name
-    grown(k)%centre = centre
-    grown(k)%kind = kind
-    grown(k)%width = width
-    if (kind == kind_real) then
-      allocate(grown(k)%r(width, n), stat=ierr)
-      if (ierr == 0) grown(k)%r = 0.0_wp
-    else
-      allocate(grown(k)%i(width, n), stat=ierr)
-      if (ierr == 0) grown(k)%i = 0_ip
-    end if
+    associate(fk => this%f(id))
+      if (kind == kind_real) then
+        allocate(fk%r(width, n), stat=ierr)
+        if (ierr == 0) fk%r = 0.0_wp
+      else
+        allocate(fk%i(width, n), stat=ierr)
+        if (ierr == 0) fk%i = 0_ip
+      end if
+    end associate
     if (ierr /= 0) then
       ! keep the registry as it was
-      call move_fields(grown, this%f, this%n_fields, 0)
+      call move_fields(this%f, kept, id - 1, 0)
+      call move_alloc(kept, this%f)
+      this%n_fields = id - 1
+      id = 0
       stat = 3
-      return
     end if
-    call move_alloc(grown, this%f)
-    this%n_fields = k
-    id = k
   end subroutine registry_add
 
   !> Add a real field whose values are the caller's array a (width values of each entity, one
@@ -165,8 +152,9 @@ contains
     integer, intent(in) :: centre, width
     real(wp), intent(inout), target, contiguous :: a(:)
     integer, intent(out) :: id, stat
-    call add_borrowed(this, name, centre, kind_real, width, size(a, kind=i8), id, stat)
+    call add_entry(this, name, centre, kind_real, width, size(a, kind=i8), id, stat)
     if (stat /= 0) return
+    this%f(id)%borrowed = .true.
     this%f(id)%rb(1:width, 1:this%n_entities(centre)) => a
   end subroutine registry_borrow_real
 
@@ -177,20 +165,32 @@ contains
     integer, intent(in) :: centre, width
     integer(ip), intent(inout), target, contiguous :: a(:)
     integer, intent(out) :: id, stat
-    call add_borrowed(this, name, centre, kind_int, width, size(a, kind=i8), id, stat)
+    call add_entry(this, name, centre, kind_int, width, size(a, kind=i8), id, stat)
     if (stat /= 0) return
+    this%f(id)%borrowed = .true.
     this%f(id)%ib(1:width, 1:this%n_entities(centre)) => a
   end subroutine registry_borrow_int
 
-  !> Whether field id is borrowed (its values the caller's array).
-  pure logical function registry_borrowed(this, id) result(b)
+  !> Add a field of zeros (kind_real or kind_int): zeros in every record, no storage (what is
+  !> unpacked into it is dropped; it has no data to fetch); id and stat as add's.
+  subroutine registry_add_zeros(this, name, centre, kind, width, id, stat)
+    class(field_registry_t), intent(inout) :: this
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: centre, kind, width
+    integer, intent(out) :: id, stat
+    call add_entry(this, name, centre, kind, width, -1_i8, id, stat)
+    if (stat == 0) this%f(id)%zeros = .true.
+  end subroutine registry_add_zeros
+
+  !> Whether the registry holds field id's values (not a borrowed or a zero field).
+  pure logical function registry_owns(this, id) result(owns)
     class(field_registry_t), intent(in) :: this
     integer, intent(in) :: id
-    b = this%f(id)%borrowed
-  end function registry_borrowed
+    owns = .not. (this%f(id)%borrowed .or. this%f(id)%zeros)
+  end function registry_owns
 
-  !> The checks and the entry of a borrowed field of n values (its view set by the caller).
-  subroutine add_borrowed(this, name, centre, kind, width, n, id, stat)
+  !> The checks and the entry, without storage, of a field of n values (n < 0: not checked).
+  subroutine add_entry(this, name, centre, kind, width, n, id, stat)
     type(field_registry_t), intent(inout) :: this
     character(len=*), intent(in) :: name
     integer, intent(in) :: centre, kind, width
@@ -205,11 +205,12 @@ contains
       stat = 1
       return
     end if
-    if (centre /= centre_node .and. centre /= centre_cell) then
+    if ((centre /= centre_node .and. centre /= centre_cell) .or. width < 1 .or. &
+        (kind /= kind_real .and. kind /= kind_int)) then
       stat = 2
       return
     end if
-    if (width < 1 .or. n /= int(width, i8)*this%n_entities(centre)) then
+    if (n >= 0 .and. n /= int(width, i8)*this%n_entities(centre)) then
       stat = 2
       return
     end if
@@ -219,11 +220,10 @@ contains
     grown(k)%centre = centre
     grown(k)%kind = kind
     grown(k)%width = width
-    grown(k)%borrowed = .true.
     call move_alloc(grown, this%f)
     this%n_fields = k
     id = k
-  end subroutine add_borrowed
+  end subroutine add_entry
 
   !> Id of the field called name, 0 if none.
   pure integer function registry_find(this, name) result(id)
@@ -317,24 +317,18 @@ contains
   function registry_real_flat(this, id) result(p)
     class(field_registry_t), intent(inout), target :: this
     integer, intent(in) :: id
-    real(wp), pointer, contiguous :: p(:)
-    if (this%f(id)%borrowed) then
-      p(1:size(this%f(id)%rb)) => this%f(id)%rb
-    else
-      p(1:size(this%f(id)%r)) => this%f(id)%r
-    end if
+    real(wp), pointer, contiguous :: p(:), d(:, :)
+    d => this%real_data(id)
+    p(1:size(d)) => d
   end function registry_real_flat
 
   !> Rank-1 pointer to the values of integer field id, entity after entity.
   function registry_int_flat(this, id) result(p)
     class(field_registry_t), intent(inout), target :: this
     integer, intent(in) :: id
-    integer(ip), pointer, contiguous :: p(:)
-    if (this%f(id)%borrowed) then
-      p(1:size(this%f(id)%ib)) => this%f(id)%ib
-    else
-      p(1:size(this%f(id)%i)) => this%f(id)%i
-    end if
+    integer(ip), pointer, contiguous :: p(:), d(:, :)
+    d => this%int_data(id)
+    p(1:size(d)) => d
   end function registry_int_flat
 
   !> Bytes of one entity's record of a centre (sum over its fields of width times value size).
@@ -401,7 +395,7 @@ contains
     end if
     do k = 1, this%n_fields
       associate(fk => this%f(k))
-        if (fk%centre /= centre) cycle
+        if (fk%centre /= centre .or. fk%zeros) cycle
         if (fk%kind == kind_real) then
           deallocate(fk%r)
           allocate(fk%r(fk%width, n), stat=ierr)
@@ -445,7 +439,7 @@ contains
     n = size(src)
     do k = 1, this%n_fields
       associate(fk => this%f(k))
-        if (fk%centre /= centre) cycle
+        if (fk%centre /= centre .or. fk%zeros) cycle
         if (fk%kind == kind_real) then
           allocate(r(fk%width, n), stat=ierr)
           if (ierr /= 0) exit
@@ -489,7 +483,9 @@ contains
       associate(fk => this%f(k))
         if (fk%centre /= centre) cycle
         nb = field_bytes(fk)
-        if (fk%borrowed) then
+        if (fk%zeros) then
+          rec(off + 1:off + nb) = 0_int8
+        else if (fk%borrowed) then
           if (fk%kind == kind_real) then
             rec(off + 1:off + nb) = transfer(fk%rb(:, e), 0_int8, nb)
           else
@@ -516,7 +512,9 @@ contains
       associate(fk => this%f(k))
         if (fk%centre /= centre) cycle
         nb = field_bytes(fk)
-        if (fk%borrowed) then
+        if (fk%zeros) then
+          ! (dropped)
+        else if (fk%borrowed) then
           if (fk%kind == kind_real) then
             fk%rb(:, e) = transfer(rec(off + 1:off + nb), 1.0_wp, fk%width)
           else
@@ -579,6 +577,7 @@ contains
       if (allocated(from(k)%r)) call move_alloc(from(k)%r, to(k)%r)
       if (allocated(from(k)%i)) call move_alloc(from(k)%i, to(k)%i)
       to(k)%borrowed = from(k)%borrowed
+      to(k)%zeros = from(k)%zeros
       to(k)%rb => from(k)%rb
       to(k)%ib => from(k)%ib
     end do

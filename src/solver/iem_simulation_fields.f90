@@ -56,7 +56,8 @@ contains
   !> the springs' arrays, 12 springs a cell, are cell fields of width 12 or 12*depth) and
   !> whether a checkpoint holds it. op_register adds the fields (only the checkpointed ones
   !> when checkpoint); op_in and op_out copy the fields that reg holds in and out (op_out
-  !> leaves a borrowed one, the run's array itself); op_borrow adds them borrowed where it can.
+  !> leaves a borrowed one, the run's array itself); op_borrow adds them borrowed where it can
+  !> (a run's array without values as a field of zeros).
   !> Not a field: the strain energy of the last evaluation, an exact sum of the cells' energies
   !> that the model keeps per rank (model_t's en_sum; the integrator's resume recomputes it).
   subroutine each_field(this, reg, op, checkpoint, stat)
@@ -140,6 +141,13 @@ contains
       if (.not. (checkpointed .or. .not. checkpoint)) return
       lend = .false.
       if (op == op_borrow .and. allocated(a)) lend = spans(width, centre, size(a, kind=i8))
+      if (op == op_borrow .and. allocated(a) .and. .not. lend) then
+        ! (an array without columns, fused RK4's rates: zeros in a checkpoint, no copy)
+        if (size(a) == 0) then
+          call reg%add_zeros(name, centre, kind_real, width, id, stat)
+          return
+        end if
+      end if
       if (lend) then
         select rank (a)
         rank (1)
@@ -156,7 +164,7 @@ contains
       end if
       id = reg%find(name)
       if (id == 0 .or. .not. allocated(a)) return
-      if (reg%borrowed(id)) return
+      if (.not. reg%owns(id)) return
       p => reg%real_flat(id)
       select rank (a)
       rank (1)
@@ -200,7 +208,7 @@ contains
       end if
       id = reg%find(name)
       if (id == 0 .or. .not. allocated(a)) return
-      if (reg%borrowed(id)) return
+      if (.not. reg%owns(id)) return
       p => reg%int_flat(id)
       if (op /= op_out) then
         p(1:size(a)) = a
