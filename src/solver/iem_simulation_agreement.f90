@@ -58,14 +58,6 @@ contains
     if (len(this%origin) == 0) then
       k0 = 0
       from = 'the initial state'
-      call log_info('step '//itoa(k_fail)//' is not finite on some rank: stepping again '// &
-                    'from the initial state to write the last good state')
-      call initial_state(this, stat, why)
-      if (stat /= 0) then
-        stat = 3
-        msg = msg//'; making the initial state again to step again from failed: '//why
-        return
-      end if
     else
       call checkpoint_read_header(this%origin, this%comm, h, stat, why)
       if (stat /= 0) then
@@ -76,15 +68,18 @@ contains
       end if
       k0 = h%step
       from = 'the checkpoint '//this%origin//' at step '//itoa(k0)
-      call log_info('step '//itoa(k_fail)//' is not finite on some rank: stepping again '// &
-                    'from '//from//' to write the last good state')
+    end if
+    call log_info('step '//itoa(k_fail)//' is not finite on some rank: stepping again from '// &
+                  from//' to write the last good state')
+    if (len(this%origin) == 0) then
+      call initial_state(this, stat, why)
+    else
       call read_state(this, this%origin, h, stat, why)
-      if (stat /= 0) then
-        stat = 3
-        msg = msg//"; reading the checkpoint '"//this%origin//"' to step again from failed: "// &
-              why
-        return
-      end if
+    end if
+    if (stat /= 0) then
+      stat = 3
+      msg = msg//'; loading '//from//' to step again from failed: '//why
+      return
     end if
     this%k_bad = huge(1_i8)
     deallocate(this%integ)

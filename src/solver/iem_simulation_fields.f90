@@ -136,27 +136,23 @@ contains
       logical, intent(in) :: checkpointed
       real(wp), pointer, contiguous :: p(:)
       integer :: id
-      logical :: lend
       if (stat /= 0) return
-      if (.not. (checkpointed .or. .not. checkpoint)) return
-      lend = .false.
-      if (op == op_borrow .and. allocated(a)) lend = spans(width, centre, size(a, kind=i8))
-      if (op == op_borrow .and. allocated(a) .and. .not. lend) then
-        ! (an array without columns, fused RK4's rates: zeros in a checkpoint, no copy)
-        if (size(a) == 0) then
+      if (checkpoint .and. .not. checkpointed) return
+      if (op == op_borrow .and. allocated(a)) then
+        if (spans(width, centre, size(a, kind=i8))) then
+          select rank (a)
+          rank (1)
+            p => a
+          rank (2)
+            p(1:size(a)) => a
+          end select
+          call reg%borrow_real(name, centre, width, p, id, stat)
+          return
+        else if (size(a) == 0) then
+          ! (an array without columns, fused RK4's rates: zeros in a checkpoint, no copy)
           call reg%add_zeros(name, centre, kind_real, width, id, stat)
           return
         end if
-      end if
-      if (lend) then
-        select rank (a)
-        rank (1)
-          p => a
-        rank (2)
-          p(1:size(a)) => a
-        end select
-        call reg%borrow_real(name, centre, width, p, id, stat)
-        return
       end if
       if (op == op_register .or. op == op_borrow) then
         call reg%add(name, centre, kind_real, width, id, stat)
@@ -193,14 +189,13 @@ contains
       logical, intent(in) :: checkpointed
       integer(ip), pointer, contiguous :: p(:)
       integer :: id
-      logical :: lend
       if (stat /= 0) return
-      if (.not. (checkpointed .or. .not. checkpoint)) return
-      lend = .false.
-      if (op == op_borrow .and. allocated(a)) lend = spans(width, centre, size(a, kind=i8))
-      if (lend) then
-        call reg%borrow_int(name, centre, width, a, id, stat)
-        return
+      if (checkpoint .and. .not. checkpointed) return
+      if (op == op_borrow .and. allocated(a)) then
+        if (spans(width, centre, size(a, kind=i8))) then
+          call reg%borrow_int(name, centre, width, a, id, stat)
+          return
+        end if
       end if
       if (op == op_register .or. op == op_borrow) then
         call reg%add(name, centre, kind_int, width, id, stat)
