@@ -111,16 +111,16 @@ contains
     ! fracture: 12 largest strains, 8 failure times, the dissipation, 8 last strains, a flag
     if (mc%fracture) spring = spring + fracture_cell_bytes
     per_node = per_node + spring*cells_per_node
-    ! a checkpoint (dynamic runs: at its interval or on a signal, and at step 0 of a run on
-    ! several ranks) packs the records of the checkpointed fields (the state y, rates acc and
-    ! reactions of every node, the springs' history of every cell) into a buffer (at most
-    ! 16 MB: counted per node, which is the case up to about 3e5 nodes a rank and errs high
-    ! beyond) with the runs' lengths and offsets of the file view (12 bytes a record) and the
-    ! counted cells' numbers, from the run's own arrays (its registry borrows them; fused
-    ! RK4's rates are zeros) but for the reactions (2 values a node), which it copies
+    ! a checkpoint (dynamic runs: at its interval or on a signal) packs the records of the
+    ! checkpointed fields (the state y, rates acc and reactions of every node, the springs'
+    ! history of every cell) round by round into a buffer (at most 16 MB: counted per node,
+    ! which is the case up to about 3e5 nodes a rank and errs high beyond) with each round's
+    ! entities, global numbers and the runs of its file view (24 bytes a record), from the
+    ! run's own arrays (its registry borrows them; fused RK4's rates are zeros) but for the
+    ! reactions (2 values a node), which it copies
     ckpt = 0.0_wp
     if (trim(mc%integrator) /= 'static') then
-      ckpt = 8.0_wp*2.0_wp*ns + 16.0_wp + 12.0_wp + 8.0_wp*cells_per_node
+      ckpt = 8.0_wp*2.0_wp*ns + 24.0_wp + 16.0_wp
       if (mc%mass_damping) ckpt = ckpt + 8.0_wp
       if (mc%stiffness_damping) ckpt = ckpt + 8.0_wp*cells_per_node
       if (mc%nonlinear) ckpt = ckpt + &

@@ -33,7 +33,8 @@ module iem_checkpoint
                                    header_ints, header_reals, layout_words
   implicit none
   private
-  public :: checkpoint_header_t, checkpoint_write, checkpoint_read_header, checkpoint_verify
+  public :: checkpoint_header_t, checkpoint_write, checkpoint_read_header, checkpoint_verify, &
+            record_runs
   public :: checkpoint_read, checkpoint_magic, checkpoint_version, word_hash
   public :: checkpoint_layout, checkpoint_check_layout, energy_words
 
@@ -76,27 +77,52 @@ contains
     end do
   end subroutine unpack_records
 
+  !> A rank's records as runs: record k of entity ents(k) at global index gids(k) (ascending),
+  !> runs(:, r) = (first entity, first global index, count) of records whose entities and
+  !> indices both follow each other (the form checkpoint_write and checkpoint_read take).
+  pure function record_runs(ents, gids) result(runs)
+    integer, intent(in) :: ents(:)
+    integer(i8), intent(in) :: gids(:)
+    integer(i8), allocatable :: runs(:, :)
+    integer :: k, nr
+    logical :: on(size(ents))
+    do k = 1, size(ents)
+      on(k) = k > 1
+      if (on(k)) on(k) = ents(k) == ents(k - 1) + 1 .and. gids(k) == gids(k - 1) + 1
+    end do
+    allocate(runs(3, count(.not. on)))
+    nr = 0
+    do k = 1, size(ents)
+      if (on(k)) then
+        runs(3, nr) = runs(3, nr) + 1
+      else
+        nr = nr + 1
+        runs(:, nr) = [int(ents(k), i8), gids(k), 1_i8]
+      end if
+    end do
+  end function record_runs
+
   !> Write a checkpoint collectively: the header (with reg's record layout), this rank's
-  !> (w_ext, w_damp), the node records of reg's node entities 1, 2, ... at the ascending
-  !> global indices node_gids, and the cell records of reg's cell entities cell_ents(k) at
-  !> the ascending global cell indices cell_gids(k) (each cell written by one rank), with
-  !> the checksum of the whole. stat /= 0 with msg on every rank on failure (the previous
-  !> file at path intact).
-  subroutine checkpoint_write(path, comm, h, energy, reg, node_gids, cell_ents, cell_gids, &
-                              stat, msg)
+  !> (w_ext, w_damp), the node records of reg's node entities and the cell records of its
+  !> cell entities given as runs (record_runs: entities at ascending global indices; each node
+  !> and each cell written by one rank), with the checksum of the whole. stat /= 0 with msg
+  !> on every rank on failure (the previous file at path intact). buffer_bytes: the records'
+  !> buffer (default chunk_bytes; a test's smaller one makes several rounds).
+  subroutine checkpoint_write(path, comm, h, energy, reg, node_runs, cell_runs, stat, msg, &
+                              buffer_bytes)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
     type(checkpoint_header_t), intent(in) :: h
     real(wp), intent(in) :: energy(energy_words)
     ! (not changed: inout only for move_records, which also reads)
     type(field_registry_t), intent(inout) :: reg
-    integer(i8), intent(in) :: node_gids(:), cell_gids(:)
-    integer, intent(in) :: cell_ents(:)
+    integer(i8), intent(in) :: node_runs(:, :), cell_runs(:, :)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
+    integer(i8), intent(in), optional :: buffer_bytes
     type(MPI_File) :: fh
     type(checkpoint_header_t) :: hc
-    integer :: rank, ierr, ierr2, rec_n, rec_c, k
+    integer :: rank, ierr, ierr2, rec_n, rec_c
     integer(MPI_OFFSET_KIND) :: off_n, off_c
     integer(i8) :: sum
     character(len=:), allocatable :: tmp
@@ -124,12 +150,12 @@ contains
                            energy_words, MPI_DOUBLE_PRECISION, MPI_STATUS_IGNORE, ierr)
     sum = words_hash(header_bytes/8 + int(energy_words, i8)*rank, &
                      transfer(energy, 0_i8, energy_words))
-    call move_records(fh, comm, off_n, rec_n, reg, centre_node, [(k, k = 1, size(node_gids))], &
-                      node_gids, .true., sum, ierr2)
+    call move_records(fh, comm, off_n, rec_n, reg, centre_node, node_runs, .true., sum, ierr2, &
+                      buffer_bytes)
     ierr = max(ierr, ierr2)
     if (rec_c > 0) then
-      call move_records(fh, comm, off_c, rec_c, reg, centre_cell, cell_ents, cell_gids, .true., &
-                        sum, ierr2)
+      call move_records(fh, comm, off_c, rec_c, reg, centre_cell, cell_runs, .true., sum, ierr2, &
+                        buffer_bytes)
       ierr = max(ierr, ierr2)
     end if
     hc%checksum = 0
@@ -181,27 +207,27 @@ contains
     end subroutine agree
   end subroutine checkpoint_write
 
-  !> Read the records of the global nodes node_gids into reg's node entities 1, 2, ... and
-  !> those of the global cells cell_gids into its cell entities 1, 2, ... (both lists
-  !> ascending; the file's layout is reg's: checkpoint_check_layout), and this rank's
-  !> (w_ext, w_damp): its own when the file was written on as many ranks, else the totals on
-  !> rank 0 and zeros elsewhere. Collective.
-  subroutine checkpoint_read(path, comm, h, energy, reg, node_gids, cell_gids, stat, msg)
+  !> Read the node and cell records given as runs (record_runs: reg's entities at ascending
+  !> global indices; the file's layout is reg's: checkpoint_check_layout) into reg, and this
+  !> rank's (w_ext, w_damp): its own when the file was written on as many ranks, else the
+  !> totals on rank 0 and zeros elsewhere; buffer_bytes as checkpoint_write's. Collective.
+  subroutine checkpoint_read(path, comm, h, energy, reg, node_runs, cell_runs, stat, msg, &
+                             buffer_bytes)
     character(len=*), intent(in) :: path
     type(MPI_Comm), intent(in) :: comm
     type(checkpoint_header_t), intent(in) :: h
     real(wp), intent(out) :: energy(energy_words)
     type(field_registry_t), intent(inout) :: reg
-    integer(i8), intent(in) :: node_gids(:), cell_gids(:)
+    integer(i8), intent(in) :: node_runs(:, :), cell_runs(:, :)
     integer, intent(out) :: stat
     character(len=:), allocatable, intent(out) :: msg
+    integer(i8), intent(in), optional :: buffer_bytes
     type(MPI_File) :: fh
     integer :: rank, n_ranks, ierr, ierr2, rec_n, rec_c, worst, r, q
     integer(MPI_OFFSET_KIND) :: off_n, off_c
     real(wp), allocatable :: all_slots(:, :)
     type(exact_sum_t) :: total(2), one
     integer(i8) :: packed(exact_sum_packed_size), unused
-    integer :: k
     call MPI_Comm_rank(comm, rank)
     call MPI_Comm_size(comm, n_ranks)
     call record_sizes(h, rec_n, rec_c)
@@ -238,12 +264,12 @@ contains
     end if
     off_n = header_bytes + 8_MPI_OFFSET_KIND*energy_words*h%n_ranks
     off_c = off_n + 8_MPI_OFFSET_KIND*rec_n*h%n_nodes
-    call move_records(fh, comm, off_n, rec_n, reg, centre_node, [(k, k = 1, size(node_gids))], &
-                      node_gids, .false., unused, ierr2)
+    call move_records(fh, comm, off_n, rec_n, reg, centre_node, node_runs, .false., unused, ierr2, &
+                      buffer_bytes)
     ierr = max(ierr, ierr2)
     if (rec_c > 0) then
-      call move_records(fh, comm, off_c, rec_c, reg, centre_cell, [(k, k = 1, size(cell_gids))], &
-                        cell_gids, .false., unused, ierr2)
+      call move_records(fh, comm, off_c, rec_c, reg, centre_cell, cell_runs, .false., unused, &
+                        ierr2, buffer_bytes)
       ierr = max(ierr, ierr2)
     end if
     call MPI_File_close(fh, ierr2)
@@ -254,38 +280,75 @@ contains
     end if
   end subroutine checkpoint_read
 
-  !> Collective write (or read) of the records of reg's entities ents(k) of a centre at the
-  !> global indices gids(k) (ascending) of the record array at byte offset off, n words a
-  !> record, through a buffer of at most chunk_bytes (in as many rounds on every rank as the
-  !> rank with the most records needs). Writing, sum XORs in the hashes of the words written.
-  subroutine move_records(fh, comm, off, n, reg, centre, ents, gids, write, sum, ierr)
+  !> Collective write (or read) of the records of reg's entities of a centre given as runs
+  !> (record_runs: entities at ascending global indices of the record array at byte offset
+  !> off, n words a record), through a buffer of at most buffer_bytes (default chunk_bytes; in
+  !> as many rounds on every rank as the rank with the most records needs; each round's
+  !> entities and indices listed for it alone). Writing, sum XORs in the hashes of the words
+  !> written.
+  subroutine move_records(fh, comm, off, n, reg, centre, runs, write, sum, ierr, buffer_bytes)
     type(MPI_File), intent(inout) :: fh
     type(MPI_Comm), intent(in) :: comm
     integer(MPI_OFFSET_KIND), intent(in) :: off
-    integer, intent(in) :: n, centre, ents(:)
+    integer, intent(in) :: n, centre
     type(field_registry_t), intent(inout) :: reg
-    integer(i8), intent(in) :: gids(:)
+    integer(i8), intent(in) :: runs(:, :)
     logical, intent(in) :: write
     integer(i8), intent(inout) :: sum
     integer, intent(out) :: ierr
-    integer(i8), allocatable :: buf(:, :)
-    integer :: m, rounds, r, lo, hi, e
-    m = int(max(1_i8, chunk_bytes/(8_i8*n)))
-    rounds = (size(gids) + m - 1)/m
+    integer(i8), intent(in), optional :: buffer_bytes
+    integer(i8), allocatable :: buf(:, :), gids(:)
+    integer, allocatable :: ents(:)
+    integer(i8) :: total, taken, room
+    integer :: m, rounds, r, k, e, run
+    total = 0
+    if (size(runs, 2) > 0) total = sum_of(runs(3, :))
+    room = chunk_bytes
+    if (present(buffer_bytes)) room = buffer_bytes
+    m = int(max(1_i8, min(room/(8_i8*n), total)))
+    rounds = int((total + m - 1)/m)
     call MPI_Allreduce(MPI_IN_PLACE, rounds, 1, MPI_INTEGER, MPI_MAX, comm)
-    allocate(buf(n, min(m, size(gids))), stat=ierr)
+    allocate(buf(n, m), ents(m), gids(m), stat=ierr)
+    if (ierr /= 0) then
+      ! (out of memory: this rank moves nothing, but takes part in every round)
+      if (allocated(buf)) deallocate(buf)
+      if (allocated(ents)) deallocate(ents)
+      if (allocated(gids)) deallocate(gids)
+      allocate(buf(n, 0), ents(0), gids(0))
+    end if
+    ! (the next record: its run and how many of that run are taken)
+    run = 1
+    taken = 0
     do r = 1, rounds
-      lo = min((r - 1)*m + 1, size(gids) + 1)
-      hi = min(r*m, size(gids))
-      if (ierr /= 0) hi = lo - 1
+      k = 0
+      do while (k < m .and. run <= size(runs, 2) .and. ierr == 0)
+        k = k + 1
+        ents(k) = int(runs(1, run) + taken)
+        gids(k) = runs(2, run) + taken
+        taken = taken + 1
+        if (taken == runs(3, run)) then
+          run = run + 1
+          taken = 0
+        end if
+      end do
       if (write) then
-        call pack_records(reg, centre, ents(lo:hi), n, buf(:, 1:hi - lo + 1))
-        sum = ieor(sum, records_hash(off/8, n, gids(lo:hi), buf(:, 1:hi - lo + 1)))
+        call pack_records(reg, centre, ents(1:k), n, buf(:, 1:k))
+        sum = ieor(sum, records_hash(off/8, n, gids(1:k), buf(:, 1:k)))
       end if
-      call transfer_records(fh, off, n, gids(lo:hi), buf(:, 1:hi - lo + 1), write, e)
+      call transfer_records(fh, off, n, gids(1:k), buf(:, 1:k), write, e)
       ierr = max(ierr, e)
-      if (.not. write) call unpack_records(reg, centre, ents(lo:hi), n, buf(:, 1:hi - lo + 1))
+      if (.not. write) call unpack_records(reg, centre, ents(1:k), n, buf(:, 1:k))
     end do
+  contains
+    !> The sum of the runs' counts.
+    pure integer(i8) function sum_of(counts)
+      integer(i8), intent(in) :: counts(:)
+      integer :: j
+      sum_of = 0
+      do j = 1, size(counts)
+        sum_of = sum_of + counts(j)
+      end do
+    end function sum_of
   end subroutine move_records
 
   !> Collective write (or read) of records rec(:, k) of n words at the global indices

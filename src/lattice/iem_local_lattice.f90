@@ -60,6 +60,7 @@ module iem_local_lattice
     procedure :: first_corners => local_lattice_first_corners
     procedure :: cell_counted => local_lattice_cell_counted
     procedure :: n_counted => local_lattice_n_counted
+    procedure :: counted_runs => local_lattice_counted_runs
     procedure :: edge_open => local_lattice_edge_open
     procedure :: free => local_lattice_free
   end type local_lattice_t
@@ -208,6 +209,40 @@ contains
       n = n + count(fc(1:m) <= this%n_owned)
     end do
   end function local_lattice_n_counted
+
+  !> The cells this rank counts as runs(:, r) = (first local cell, its global number, cells
+  !> in the run) of counted cells that follow each other in both numberings.
+  pure function local_lattice_counted_runs(this) result(runs)
+    class(local_lattice_t), intent(in) :: this
+    integer(i8), allocatable :: runs(:, :)
+    integer :: pass, nr, j, i, m, c, last_c, fc(max_chunk)
+    integer(i8) :: g, last_g
+    allocate(runs(3, 0))
+    do pass = 1, 2
+      nr = 0
+      last_c = -1
+      last_g = -1
+      do j = 1, this%cells%n_chunks()
+        call this%first_corners(j, fc, m)
+        do i = 1, m
+          if (fc(i) > this%n_owned) cycle
+          c = this%cells%chunks(1, j) + i - 1
+          g = this%cell_gid(c)
+          if (c /= last_c + 1 .or. g /= last_g + 1) then
+            nr = nr + 1
+            if (pass == 2) runs(:, nr) = [int(c, i8), g, 0_i8]
+          end if
+          if (pass == 2) runs(3, nr) = runs(3, nr) + 1
+          last_c = c
+          last_g = g
+        end do
+      end do
+      if (pass == 1) then
+        deallocate(runs)
+        allocate(runs(3, nr))
+      end if
+    end do
+  end function local_lattice_counted_runs
 
   !> True when edge q (1 bottom, 2 right, 3 top, 4 left) of local cell c is on the boundary.
   pure logical function local_lattice_edge_open(this, c, q) result(open)

@@ -22,6 +22,7 @@ module iem_number_runs
     procedure :: run_of => number_runs_run_of
     procedure :: number => number_runs_number
     procedure :: numbers => number_runs_numbers
+    procedure :: table => number_runs_table
     procedure :: item_of => number_runs_item_of
     procedure :: free => number_runs_free
   end type number_runs_t
@@ -79,6 +80,17 @@ contains
     r = this%run_of(k)
     g = this%gid(r) + (k - this%first(r))
   end function number_runs_number
+
+  !> The runs as t(:, r) = (first item, its number, items in the run).
+  pure function number_runs_table(this) result(t)
+    class(number_runs_t), intent(in) :: this
+    integer(i8), allocatable :: t(:, :)
+    integer :: r
+    allocate(t(3, this%n))
+    do r = 1, this%n
+      t(:, r) = [int(this%first(r), i8), this%gid(r), int(this%first(r + 1) - this%first(r), i8)]
+    end do
+  end function number_runs_table
 
   !> Global numbers of all items (ascending).
   pure function number_runs_numbers(this) result(g)

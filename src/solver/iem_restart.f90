@@ -94,12 +94,10 @@ contains
   module procedure write_checkpoint
     type(checkpoint_header_t) :: h
     type(field_registry_t), target :: reg
-    integer(i8), allocatable :: cg(:)
-    integer, allocatable :: cells(:)
     type(exact_sum_t) :: acc(3)
     integer(i8) :: packed(exact_sum_packed_size, 2)
     real(wp) :: slot(energy_words)
-    integer :: l, c, worst
+    integer :: worst
     call flush_history(this, stat)
     if (stat /= 0) then
       msg = 'writing the history before a checkpoint failed'
@@ -153,16 +151,8 @@ contains
       return
     end if
     ! owned nodes are the registry's first node entities; the counted cells, by global index
-    cg = counted_cell_gids(this)
-    allocate(cells(size(cg)))
-    c = 0
-    do l = 1, this%lat%n_cells
-      if (.not. this%lat%cell_counted(l)) cycle
-      c = c + 1
-      cells(c) = l
-    end do
     call checkpoint_write(trim(this%cfg%run%checkpoint_file), this%comm, h, slot, reg, &
-                          this%lat%owned_gids(), cells, cg, stat, msg)
+                          this%lat%node_runs%table(), this%lat%counted_runs(), stat, msg)
     call reg%free()
     if (stat /= 0) return
     ! the state a diverging run on more than one rank steps again from
@@ -206,8 +196,8 @@ contains
       call reg%free()
       return
     end if
-    call checkpoint_read(path, this%comm, h, energy, reg, this%lat%owned_gids(), &
-                         this%lat%cell_gids(), stat, msg)
+    call checkpoint_read(path, this%comm, h, energy, reg, this%lat%node_runs%table(), &
+                         this%lat%cell_runs%table(), stat, msg)
     if (stat /= 0) then
       call reg%free()
       return
