@@ -154,13 +154,8 @@ contains
           return
         end if
       end if
-      if (op == op_register .or. op == op_borrow) then
-        call reg%add(name, centre, kind_real, width, id, stat)
-        if (op == op_register .or. stat /= 0) return
-      end if
-      id = reg%find(name)
+      call copied(name, centre, kind_real, width, id)
       if (id == 0 .or. .not. allocated(a)) return
-      if (.not. reg%owns(id)) return
       p => reg%real_flat(id)
       select rank (a)
       rank (1)
@@ -197,13 +192,8 @@ contains
           return
         end if
       end if
-      if (op == op_register .or. op == op_borrow) then
-        call reg%add(name, centre, kind_int, width, id, stat)
-        if (op == op_register .or. stat /= 0) return
-      end if
-      id = reg%find(name)
+      call copied(name, centre, kind_int, width, id)
       if (id == 0 .or. .not. allocated(a)) return
-      if (.not. reg%owns(id)) return
       p => reg%int_flat(id)
       if (op /= op_out) then
         p(1:size(a)) = a
@@ -211,6 +201,24 @@ contains
         a = p(1:size(a))
       end if
     end subroutine int_field
+
+    !> A field the registry holds a copy of: with op_register or op_borrow, add it (owned) to
+    !> reg; then its id when there are values to copy in or out (op_in, op_out, op_borrow),
+    !> else 0 (registering alone, a failed add, not in reg, or not the registry's own).
+    subroutine copied(name, centre, kind, width, id)
+      character(len=*), intent(in) :: name
+      integer, intent(in) :: centre, kind, width
+      integer, intent(out) :: id
+      if (op == op_register .or. op == op_borrow) then
+        call reg%add(name, centre, kind, width, id, stat)
+        if (op == op_register .or. stat /= 0) id = 0
+        if (id == 0) return
+      end if
+      id = reg%find(name)
+      if (id /= 0) then
+        if (.not. reg%owns(id)) id = 0
+      end if
+    end subroutine copied
 
     !> Whether a run's array of n values holds width values of every entity of a centre of
     !> reg (and so can be borrowed).
