@@ -279,11 +279,8 @@ contains
   pure logical function registry_has_centre(this, centre) result(has)
     class(field_registry_t), intent(in) :: this
     integer, intent(in) :: centre
-    integer :: k
     has = .false.
-    do k = 1, this%n_fields
-      if (this%f(k)%centre == centre) has = .true.
-    end do
+    if (this%n_fields > 0) has = any(this%f(1:this%n_fields)%centre == centre)
   end function registry_has_centre
 
   !> Pointer to the values (width, entities) of real field id; valid until the registry
@@ -588,11 +585,9 @@ contains
   pure logical function lends(this, centre)
     type(field_registry_t), intent(in) :: this
     integer, intent(in) :: centre
-    integer :: k
     lends = .false.
-    do k = 1, this%n_fields
-      if (this%f(k)%centre == centre .and. this%f(k)%borrowed) lends = .true.
-    end do
+    if (this%n_fields > 0) lends = any(this%f(1:this%n_fields)%centre == centre .and. &
+                                       this%f(1:this%n_fields)%borrowed)
   end function lends
 
   !> Bytes of one entity's values of a field.
