@@ -302,6 +302,7 @@ def cmd_agreement(args) -> None:
              "rk4_repartition": ("rk4", ", repartition_step = 40"),
              "rk4_late_checkpoint": ("rk4", f", checkpoint_interval = {200 * 1.5 * limit:.6e}"),
              "rk4_fracture": ("rk4", ""), "rk4_nonlinear": ("rk4", ""),
+             "rk4_initial": ("rk4", ""), "rk4_capped": ("rk4", ""),
              "rk4_fracture_checkpoint": ("rk4", f", checkpoint_interval = {90 * 1.5 * limit:.6e}")}
     # a third of the beam of a material whose springs fail, or of one with nonlinear springs
     # (14 cells damaged by step 91, 26 past 1 % nonlinearity by step 100, of 112): the replay
@@ -315,7 +316,18 @@ def cmd_agreement(args) -> None:
                                                         "= 3.0e6, fracture_energy = 100.0"),
                "rk4_nonlinear": region.format("nonlinear = .true., tensile_strength = "
                                                  "3.0e6, compressive_strength = 30.0e6, "
-                                                 "shear_strength = 3.0e6")}
+                                                 "shear_strength = 3.0e6"),
+               # an initial state that is not at rest: a velocity with a spin, a support
+               # moving at a ramped velocity, mass damping (its work folded node by node);
+               # and capped damping (6 values a node) from an initial velocity
+               "rk4_initial": ("&initial\n  velocity = 0.3, -0.2, angular_velocity = 5.0, "
+                               "center = 0.1, 0.01\n/\n&damping\n  kind = 'mass', ratio = "
+                               "0.05, frequency = 50.0\n/\n&bc\n  name = 'push', where = "
+                               "'right', kind = 'velocity', dofs = 'x', velocity = 0.5, 0.0, "
+                               "time_function = 'ramp', t_ramp = 2.0e-4\n/\n"),
+               "rk4_capped": ("&initial\n  velocity = 0.1, 0.0\n/\n&damping\n  kind = "
+                              "'capped', ratio = 0.03, frequency = 50.0, cap_frequency = "
+                              "500.0\n/\n")}
     # (across a repartitioning RK4: velocity Verlet's last good velocities are v - h a, to the
     # round-off of the kick, and the repartitioned ranks' passes round a supported node's 0
     # differently, with a per-step agreement too)
