@@ -10,7 +10,8 @@ repository root, after building both):
 
     python3 benchmarks/speed.py --iem build/iem --baseline "$(bash benchmarks/baseline.sh f17bd0c)"
     python3 benchmarks/speed.py --iem NEW --baseline OLD [--repeat 5] [--quick] [--weak]
-                                [--only force,rk4,verlet,memory,size,nonlinear,damped,fracture,weak]
+                                [--only force,rk4,verlet,memory,checkpoint,size,nonlinear,damped,
+                                        fracture,weak]
                                 [--save runs.json]
 
 The cases (1 rank unless said; `block N` is benchmarks/throughput.py's clamped 2:1 block of
@@ -26,6 +27,8 @@ about N nodes, plane stress, paper's cell, edge load, at about 0.9 of the stable
 - RK4 and Verlet blocks of 1e6 nodes (1,001,820), about 100 steps (memory, size; fewer
   would weigh a run's fixed costs, such as its first evaluation and its two history samples,
   more at 1e6 than in the longer runs of 1e5);
+- checkpoint: the RK4 blocks of 1e5 and 1e6 nodes with one checkpoint half way
+  (`checkpoint_interval`), for the memory a checkpoint adds;
 - the nonlinear cantilever of benchmarks/nonlinear_cost.py (inputs/cantilever_nonlinear_
   dynamic.nml, 729 nodes) for 0.01 s, and with the nonlinear springs off for 0.04 s (the
   elastic run's rate does not depend on its length; 0.01 s of it would last 0.1 s);
@@ -36,8 +39,8 @@ about N nodes, plane stress, paper's cell, edge load, at about 0.9 of the stable
 - weak: the RK4 block of 2e5 nodes on 2 ranks, with the steps of the 1e5 block; and two
   1-rank runs of the RK4 block of 1e5 nodes started together, each pinned to its own core
   (the machine's own ceiling for weak scaling: two cores reading one shared cache and memory).
---quick halves the work (steps, or t_end) of each run and leaves out memory and size (the
-1e6-node runs); weak runs only with --weak or when --only names it.
+--quick halves the work (steps, or t_end) of each run and leaves out memory, checkpoint and
+size (the 1e6-node runs); weak runs only with --weak or when --only names it.
 
 Definitions (from iem's end-of-run report: node-steps, the time loop's wall time, the share
 of that time in each part, the peak resident memory VmHWM of every rank):
@@ -52,6 +55,9 @@ of that time in each part, the peak resident memory VmHWM of every rank):
   bending-corrected one, and the paper's cell with holes;
 - bytes per node = slope of the peak resident memory (`memory: peak ... MB per rank`, MB =
   2^20 bytes) between the blocks of 1e5 and 1e6 nodes on 1 rank, RK4 and Verlet;
+- checkpoint (no target) = the same slope for the RK4 blocks with a checkpoint: the run's bytes
+  a node with what a checkpoint adds at its moment (its records' buffer is at most 16 MB, so
+  the slope counts it only up to about 2.6e5 nodes);
 - size ratio = node-steps/s at 1e6 nodes / node-steps/s at 1e5 (RK4, Verlet);
 - nonlinear ratio = elastic node-steps/s / nonlinear node-steps/s, same scene and build;
 - damped (no target; the runs of the nonlinear ratio's elastic cantilever, mass-damped): its
@@ -94,7 +100,8 @@ import iembench as ib  # noqa: E402
 import nonlinear_cost  # noqa: E402
 from throughput import block_case, run_nml, run_pair  # noqa: E402
 
-MEASURES = ("force", "rk4", "verlet", "memory", "size", "nonlinear", "damped", "fracture", "weak")
+MEASURES = ("force", "rk4", "verlet", "memory", "checkpoint", "size", "nonlinear", "damped",
+            "fracture", "weak")
 DEFAULT = MEASURES[:-1]
 QUICK = ("force", "rk4", "verlet", "nonlinear", "damped", "fracture")
 EVALS_PER_STEP = {"rk4": 4, "verlet": 1}
@@ -166,6 +173,9 @@ ROWS = (
     Measure("memory", "Verlet bytes per node (1e5 to 1e6)", ("verlet_1e5", "verlet_1e6"),
             lambda g: bytes_per_node(g("verlet_1e5"), g("verlet_1e6")), ".0f",
             Target("new", "<=", 90)),
+    Measure("checkpoint", "RK4 bytes per node with a checkpoint (1e5 to 1e6)",
+            ("rk4_ck_1e5", "rk4_ck_1e6"),
+            lambda g: bytes_per_node(g("rk4_ck_1e5"), g("rk4_ck_1e6")), ".0f", None),
     Measure("size", "RK4 size ratio: rate 1e6 / rate 1e5", ("rk4_1e5", "rk4_1e6"),
             lambda g: step_rate(g("rk4_1e6")) / step_rate(g("rk4_1e5")), ".3f",
             Target("new", ">=", 0.80)),
@@ -272,6 +282,13 @@ def with_square_holes(text: str) -> str:
     return text.replace("&bc", holes + "&bc", 1)
 
 
+def with_checkpoint(text: str, path: Path) -> str:
+    """A block case with one checkpoint half way (to path)."""
+    t_end = float(re.search(r"t_end = ([0-9.eE+-]+)", text)[1])
+    return text.replace("&run\n", f"&run\n  checkpoint_interval = {0.5 * t_end:.6e}, "
+                        f"checkpoint_file = '{path}'\n", 1)
+
+
 def with_capped_damping(text: str) -> str:
     """A block case with capped stiffness damping: 3 % at 50 Hz, faded above 500 Hz."""
     damping = ("&damping\n  kind = 'capped', ratio = 0.03, frequency = 50.0, "
@@ -300,6 +317,11 @@ def write_cases(names: list[str], folder: Path, scale: float) -> dict[str, tuple
             text = with_holes(block_case(1.37e5, 4e7 * scale / 0.72, "paper", "rk4")[0])
         elif name == "rk4_squares_1e5":
             text = with_square_holes(block_case(1.37e5, 4e7 * scale / 0.72, "paper", "rk4")[0])
+        elif name in ("rk4_ck_1e5", "rk4_ck_1e6"):
+            # the RK4 blocks of memory with one checkpoint half way
+            n, work = (1e5, 4e7) if name == "rk4_ck_1e5" else (1e6, 2e8)
+            text = with_checkpoint(block_case(n, work * scale, "paper", "rk4")[0],
+                                   folder / f"{name}.chk")
         elif name in ("rk4_1e6", "verlet_1e6"):
             # 200 nominal steps: about 100 (block_case's step is about half the stable step;
             # the run takes 0.9 of it). Not fewer: a run's fixed costs (its first evaluation,

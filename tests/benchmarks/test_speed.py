@@ -123,3 +123,14 @@ def test_square_holes_have_the_round_holes_area_and_centres():
         assert (x1 - x0) * (y1 - y0) == pytest.approx(3.141592653589793 * 0.15**2, rel=1e-5)
     # the round holes' case names the same centres
     assert speed.with_holes(block).count("kind = 'circle'") == 8
+
+
+def test_checkpoint_case_writes_one_half_way():
+    block = "&run\n  t_end = 2.0e-04, output_interval = 2.0e-04\n/\n&bc\n/\n"
+    text = speed.with_checkpoint(block, speed.Path("/tmp/x.chk"))
+    run = text.split("/\n", 1)[0]
+    assert "checkpoint_interval = 1.000000e-04" in run
+    assert "checkpoint_file = '/tmp/x.chk'" in run
+    # the measure reads the slope of the peaks of the two blocks with a checkpoint
+    m = next(r for r in speed.ROWS if r.key == "checkpoint")
+    assert m.cases == ("rk4_ck_1e5", "rk4_ck_1e6") and m.target is None
