@@ -13,9 +13,9 @@ contains
     logical :: diverged, accepted, sampled, framed, moves
 
     call report_start(this)
-    ! on more than one rank, a diverging run steps again from its origin: the initial state
-    ! until a checkpoint is written (docs/architecture.md, "How the ranks agree on a
-    ! non-finite step")
+    ! on more than one rank each step's verdict stays on its rank, and a diverging run steps
+    ! again from its origin: the checkpoint it continues from or its last one, else the
+    ! initial state (docs/architecture.md, "How the ranks agree on a non-finite step")
     if (this%n_ranks > 1) this%origin = ''
     wall0 = MPI_Wtime()
     wall_last = wall0
@@ -25,7 +25,7 @@ contains
     this%w_damp = 0.0_wp
     k_first = 0
     if (this%restart%step > 0) then
-      this%origin = trim(this%cfg%run%restart)
+      if (this%n_ranks > 1) this%origin = trim(this%cfg%run%restart)
       call load_checkpoint(this, stat, msg)
       if (stat /= 0) return
       call this%integ%resume(this%model, this%lat, this%halo, this%st, this%restart%t)
@@ -35,8 +35,7 @@ contains
       call log_info('continuing from '//trim(this%cfg%run%restart)//' at step '// &
                     itoa(k_first)//', t = '//rtoa(real(k_first, wp)*this%dt)//' s')
     end if
-    ! each step's verdict stays on its rank (one rank needs no agreement)
-    this%integ%local = this%n_ranks > 1 .and. allocated(this%origin)
+    this%integ%local = this%n_ranks > 1
     do k = k_first, this%n_steps
       t = real(k, wp)*this%dt
       if (k > k_first) then
