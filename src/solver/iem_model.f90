@@ -145,8 +145,9 @@ module iem_model
     !> empty; every copy of a cell folds the same terms, the counted one is collected): the
     !> cell field 'cell_damping_work'.
     real(wp), allocatable :: wd_cell(:)
-    !> RK4's stages as one wavefront over the bands where it applies (stages_fit;
-    !> rate_stages); waves = .false. evaluates them one after the other.
+    !> RK4's stages as one wavefront over bands of its own where it applies (stages_fit;
+    !> rate_stages; with halo nodes each stage's strip first); waves = .false. evaluates
+    !> them one after the other.
     type(stage_wave_t) :: wave
     logical :: waves = .true.
   contains
@@ -232,9 +233,10 @@ module iem_model
     !> The cell forces of the chunks of table (range: only those; at: the split's routed
     !> chunks) at the state y, added to fs, with the kernel's node rows and slots: accept
     !> commits the springs' history and the damage at time, terms takes the counted cells'
-    !> energies; pd the kernel's damping power; damaged: whether fracture has damaged a cell.
+    !> energies; pd the kernel's damping power; damaged: whether fracture has damaged a cell;
+    !> split: the split whose routes and side slots at refers to (default: the model's).
     module subroutine model_cells(this, lat, table, y, fs, accept, time, rows, slots, pd, at, &
-                                  terms, range, damaged)
+                                  terms, range, damaged, split)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       type(cell_table_t), intent(in) :: table
@@ -249,6 +251,7 @@ module iem_model
       type(exact_sum_t), intent(inout), optional :: terms
       integer, intent(in), optional :: range(2)
       logical, intent(out), optional :: damaged
+      type(cell_split_t), intent(inout), optional :: split
     end subroutine model_cells
 
     !> Prescribed dof q at an evaluated state y at time t, from its node's cell forces in fs
@@ -274,25 +277,32 @@ module iem_model
     !> prescribed velocities set at its time as its nodes are made; each stage's powers p_ext
     !> and p_damp, their terms added to the work and dissipation times wdt (add_work), stage
     !> 4's sum of the new values in total, and acc's imposed accelerations as the calls
-    !> leave them. No energies are summed (energies_due is .false.).
+    !> leave them. No energies are summed (energies_due is .false.). On a rank with halo
+    !> nodes (halo needed) each stage first evaluates its strip, whose nodes include those
+    !> the neighbours receive, exchanges them, and then goes on with its bands (y0's halo
+    !> columns exchanged here with first = 1).
     module subroutine model_rate_stages(this, lat, first, ys, y0, ynew, acc, ts, wdt, h, &
-                                        p_ext, p_damp, total)
+                                        p_ext, p_damp, total, halo)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
       integer, intent(in) :: first
       real(wp), intent(inout), contiguous :: ys(:, :), ynew(:, :), acc(:, :)
-      real(wp), intent(in), contiguous :: y0(:, :)
+      real(wp), intent(inout), contiguous :: y0(:, :)
       real(wp), intent(in) :: ts(wave_stages), wdt(wave_stages), h(wave_stages)
       real(wp), intent(out) :: p_ext(wave_stages), p_damp(wave_stages), total
+      type(halo_t), intent(inout), optional :: halo
     end subroutine model_rate_stages
 
     !> The bands of the lattice's chunks (with halo nodes, of the split's interior chunks),
     !> each completing at least band_nodes nodes (default: iem_cell_bands'
-    !> band_nodes_default), and the wavefront's schedule over them (without halo nodes).
-    module subroutine model_set_bands(this, lat, band_nodes)
+    !> band_nodes_default), and RK4's wavefront: its bands of at least wave_nodes nodes
+    !> (default: band_nodes where given, else iem_stage_wave's wave_band_nodes) and their
+    !> schedule (with halo nodes, each stage's strip and bands, iem_stage_wave's
+    !> init_strips).
+    module subroutine model_set_bands(this, lat, band_nodes, wave_nodes)
       class(model_t), intent(inout) :: this
       type(local_lattice_t), intent(in) :: lat
-      integer, intent(in), optional :: band_nodes
+      integer, intent(in), optional :: band_nodes, wave_nodes
     end subroutine model_set_bands
 
     !> Velocity Verlet's step evaluated at t1 (model_rate with commit, kick h and drift dt)

@@ -20,53 +20,66 @@ contains
       decay = exp(-this%omega_cap*this%mean_dt)
       mid = 0.5_wp*(1.0_wp - decay)/decay
     end if
-    if (this%nonlinear) then
-      if (this%mixed) then
+    ! the routes and side slots of the split given (a stage's strip), else the model's
+    if (present(split)) then
+      call kernel(split%route, split%side)
+    else
+      call kernel(this%split%route, this%split%side)
+    end if
+  contains
+
+    !> The kernel's call with the routes route and side slots side (absent: none).
+    subroutine kernel(route, side)
+      integer, intent(in), optional, contiguous :: route(:)
+      real(wp), intent(inout), optional, contiguous :: side(:, :)
+      if (this%nonlinear) then
+        if (this%mixed) then
+          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
+                           this%energy, pd, this%n_state - 1, this%nl, accept, this%ks, &
+                           lat%cell_mat, none, this%pw_cell, energy_terms=terms, &
+                           add=.true., rows=rows, route_at=at, route=route, &
+                           side=side, chunks=range, slots=slots, power_mid=mid)
+        else
+          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
+                           this%energy, pd, this%n_state - 1, this%nl, accept, &
+                           cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
+                           add=.true., rows=rows, route_at=at, &
+                           route=route, side=side, &
+                           chunks=range, slots=slots, power_mid=mid)
+        end if
+      else if (this%fracture) then
+        if (this%mixed) then
+          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
+                           this%energy, pd, this%n_state - 1, commit=accept, ks=this%ks, &
+                           cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
+                           cell_power=this%pw_cell, fr=this%fr, time=time, &
+                           add=.true., rows=rows, route_at=at, route=route, &
+                           side=side, chunks=range, slots=slots, &
+                           power_mid=mid, damaged=damaged)
+        else
+          call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
+                           this%energy, pd, this%n_state - 1, commit=accept, &
+                           cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
+                           fr=this%fr, time=time, add=.true., rows=rows, &
+                           route_at=at, route=route, side=side, &
+                           chunks=range, slots=slots, power_mid=mid, damaged=damaged)
+        end if
+      else if (this%mixed) then
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                         this%energy, pd, this%n_state - 1, this%nl, accept, this%ks, &
-                         lat%cell_mat, none, this%pw_cell, energy_terms=terms, &
-                         add=.true., rows=rows, route_at=at, route=this%split%route, &
-                         side=this%split%side, chunks=range, slots=slots, power_mid=mid)
+                         this%energy, pd, this%n_state - 1, ks=this%ks, &
+                         cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
+                         cell_power=this%pw_cell, add=.true., rows=rows, &
+                         route_at=at, route=route, side=side, &
+                         chunks=range, slots=slots, power_mid=mid)
       else
         call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                         this%energy, pd, this%n_state - 1, this%nl, accept, &
-                         cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
-                         add=.true., rows=rows, route_at=at, &
-                         route=this%split%route, side=this%split%side, &
+                         this%energy, pd, this%n_state - 1, cell_energy=none, &
+                         energy_terms=terms, &
+                         cell_power=this%pw_cell, add=.true., rows=rows, &
+                         route_at=at, route=route, side=side, &
                          chunks=range, slots=slots, power_mid=mid)
       end if
-    else if (this%fracture) then
-      if (this%mixed) then
-        call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                         this%energy, pd, this%n_state - 1, commit=accept, ks=this%ks, &
-                         cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
-                         cell_power=this%pw_cell, fr=this%fr, time=time, &
-                         add=.true., rows=rows, route_at=at, route=this%split%route, &
-                         side=this%split%side, chunks=range, slots=slots, &
-                         power_mid=mid, damaged=damaged)
-      else
-        call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                         this%energy, pd, this%n_state - 1, commit=accept, &
-                         cell_energy=none, cell_power=this%pw_cell, energy_terms=terms, &
-                         fr=this%fr, time=time, add=.true., rows=rows, &
-                         route_at=at, route=this%split%route, side=this%split%side, &
-                         chunks=range, slots=slots, power_mid=mid, damaged=damaged)
-      end if
-    else if (this%mixed) then
-      call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                       this%energy, pd, this%n_state - 1, ks=this%ks, &
-                       cell_mat=lat%cell_mat, cell_energy=none, energy_terms=terms, &
-                       cell_power=this%pw_cell, add=.true., rows=rows, &
-                       route_at=at, route=this%split%route, side=this%split%side, &
-                       chunks=range, slots=slots, power_mid=mid)
-    else
-      call cell_forces(this%k, table, lat%n_owned, y, this%beta, fs, &
-                       this%energy, pd, this%n_state - 1, cell_energy=none, &
-                       energy_terms=terms, &
-                       cell_power=this%pw_cell, add=.true., rows=rows, &
-                       route_at=at, route=this%split%route, side=this%split%side, &
-                       chunks=range, slots=slots, power_mid=mid)
-    end if
+    end subroutine kernel
   end procedure model_cells
 
   !> Documented at its interface in iem_model.f90.

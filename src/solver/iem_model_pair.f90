@@ -50,7 +50,7 @@ contains
       end if
       if (done(2) < nb .and. .not. stopped) then
         b = done(2) + 1
-        if (done(1) >= this%wave%need(b)) then
+        if (done(1) >= this%wave%pair_need(b)) then
           call next_cells(b)
           done(2) = b
         end if
@@ -113,7 +113,7 @@ contains
     subroutine stop_next(b)
       integer, intent(in) :: b
       stopped = .true.
-      acc(:, 1:this%bands%done(this%wave%need(b))) = 0.0_wp
+      acc(:, 1:this%bands%done(this%wave%pair_need(b))) = 0.0_wp
     end subroutine stop_next
 
     !> iem_verlet's mend_prescribed for the dofs bc_by_node(j1..j2): their velocities at the

@@ -255,7 +255,8 @@ contains
       call timer_stop(t_update)
       call timer_start(t_force)
       call model%rate_stages(lat, first, st%ys, st%y, st%ynew, st%acc, t + frac*dt, &
-                             weight*dt, [frac(2:4)*dt, 0.0_wp], pw_ext, pw_damp, total)
+                             weight*dt, [frac(2:4)*dt, 0.0_wp], pw_ext, pw_damp, total, &
+                             halo)
       call timer_stop(t_force)
       call timer_start(t_update)
       if (first == 1) then
